@@ -1,0 +1,282 @@
+"""The runtime firmware runs in: a CPU that executes ISRs and tasks, each costing core cycles.
+
+* **ISRs** are plain functions bound to a vector with a declared cost in cycles:
+  ``cpu.vector(28, tim2_irq_handler, cost=120)``. When the NVIC has a pending, enabled interrupt
+  more urgent than what runs, the CPU takes it: ``entry_latency`` cycles (12 on Cortex-M) of
+  stacking, then the handler's Python body runs at that instant, then the CPU stays busy for the
+  declared cost; then the handler returns (tail-chaining into the next pending one, if any).
+* **Tasks** are coroutines in simulated time::
+
+      async def pid_task():
+          while True:
+              pos = encoder_get_position(enc)
+              await cpu.cycles(900)            # the cost of the computation
+              pwm_set_duty(...)
+              await rtos.delay_until(wake)     # RTOS ticks
+
+  The Python code between two awaits runs atomically at one instant; ``cycles(n)`` is CPU time
+  that ISRs and higher-priority tasks preempt (its end moves later by the time they take).
+* An :class:`Rtos` schedules tasks by priority, FreeRTOS style: delays in ticks, the tick from a
+  SysTick exception whose handler has a cost, preemption at tick and interrupt boundaries.
+
+Simplifications, stated: a late-arriving more urgent interrupt preempts the entry sequence of a
+less urgent one instead of taking over its stacking; tail-chaining costs a full entry latency.
+"""
+
+from __future__ import annotations
+
+from .kernel import PRIO_CPU
+
+THREAD_PRIO = 1 << 16  # execution priority of thread mode: below every exception
+
+
+class _Req:
+    """An awaitable request a task hands to the runtime."""
+    __slots__ = ("kind", "arg")
+
+    def __init__(self, kind, arg):
+        self.kind, self.arg = kind, arg
+
+    def __await__(self):
+        yield self
+
+
+class Context:
+    """Something that occupies the CPU: a task or an exception handler."""
+
+    def __init__(self, name):
+        self.name = name
+        self.remaining = None  # base ticks of busy work left while preempted
+        self.end_ev = None
+        self.on_done = None
+
+    def __repr__(self):
+        return f"<{type(self).__name__} {self.name}>"
+
+
+class IsrContext(Context):
+    def __init__(self, irqn, prio, handler, cost):
+        super().__init__(f"irq{irqn}")
+        self.irqn, self.prio, self.handler, self.cost = irqn, prio, handler, cost
+
+
+class Task(Context):
+    def __init__(self, name, coro, priority):
+        super().__init__(name)
+        self.coro, self.priority = coro, priority
+        self.state = "ready"  # ready | blocked | done
+        self.wake_tick = None
+        self.started = False
+
+
+class Cpu:
+    """A single core executing ISRs (from the NVIC) and RTOS tasks, with cycle costs."""
+
+    def __init__(self, kernel, clock, nvic, entry_latency=12, name="cpu"):
+        self.kernel, self.clock, self.nvic, self.name = kernel, clock, nvic, name
+        self.entry_latency = entry_latency
+        nvic.cpu = self
+        self.vectors: dict[int, tuple] = {}
+        self.stack: list[IsrContext] = []
+        self.rtos: Rtos | None = None
+        self._in_code = False
+        self._dispatch_wanted = False
+        self.isr_count: dict[int, int] = {}
+        self.busy_ticks = 0
+
+    # --- firmware-facing ------------------------------------------------------------------
+    def vector(self, irqn: int, handler, cost: int = 0) -> None:
+        """Bind ``handler()`` to interrupt ``irqn`` with a declared cost in core cycles."""
+        self.vectors[irqn] = (handler, cost)
+
+    @staticmethod
+    def cycles(n: int) -> _Req:
+        """``await cpu.cycles(n)``: spend n core cycles (preemptible)."""
+        return _Req("cycles", n)
+
+    @property
+    def now_cycles(self) -> int:
+        return self.kernel.now // self.clock.period
+
+    # --- contexts ---------------------------------------------------------------------------
+    def _top(self):
+        if self.stack:
+            return self.stack[-1]
+        return self.rtos.current if self.rtos else None
+
+    def _busy(self, ctx: Context, ticks: int, on_done) -> None:
+        ctx.on_done = on_done
+        if ctx is self._top():
+            ctx.remaining = None
+            ctx.end_ev = self.kernel.after(ticks, self._finish, ctx, prio=PRIO_CPU)
+        else:
+            ctx.remaining = ticks
+
+    def _finish(self, ctx):
+        ctx.end_ev = None
+        done, ctx.on_done = ctx.on_done, None
+        done()
+
+    def _pause(self, ctx):
+        if ctx is not None and ctx.end_ev is not None:
+            ctx.remaining = ctx.end_ev.time - self.kernel.now
+            ctx.end_ev.cancel()
+            ctx.end_ev = None
+
+    def _resume(self, ctx):
+        if ctx is not None and ctx.remaining is not None and ctx.on_done is not None:
+            ticks, ctx.remaining = ctx.remaining, None
+            ctx.end_ev = self.kernel.after(ticks, self._finish, ctx, prio=PRIO_CPU)
+
+    def run_code(self, fn, *args):
+        """Run firmware Python code atomically; interrupt dispatch waits until it returns."""
+        outer = self._in_code
+        self._in_code = True
+        try:
+            return fn(*args)
+        finally:
+            self._in_code = outer
+            if not outer and self._dispatch_wanted:
+                self._dispatch_wanted = False
+                self._dispatch()
+
+    # --- interrupts -------------------------------------------------------------------------
+    def current_priority(self) -> int:
+        return self.stack[-1].prio if self.stack else THREAD_PRIO
+
+    def request_dispatch(self) -> None:
+        if self._in_code:
+            self._dispatch_wanted = True
+        else:
+            self._dispatch()
+
+    def _dispatch(self) -> None:
+        best = self.nvic.best_pending()
+        if best is None:
+            return
+        prio, irqn = best
+        if prio >= self.current_priority():
+            return
+        if irqn not in self.vectors:
+            from .errors import McusimError
+            raise McusimError(f"interrupt {irqn} is enabled and pending but the firmware has no handler for it")
+        self._pause(self._top())
+        self.nvic.acknowledge(irqn)
+        handler, cost = self.vectors[irqn]
+        ctx = IsrContext(irqn, prio, handler, cost)
+        self.stack.append(ctx)
+        self._busy(ctx, self.clock.cycles(self.entry_latency), lambda: self._enter(ctx))
+
+    def _enter(self, ctx: IsrContext) -> None:
+        self.isr_count[ctx.irqn] = self.isr_count.get(ctx.irqn, 0) + 1
+        self.busy_ticks += self.clock.cycles(self.entry_latency + ctx.cost)
+        self.run_code(ctx.handler)
+        self._busy(ctx, self.clock.cycles(ctx.cost), lambda: self._exit(ctx))
+
+    def _exit(self, ctx: IsrContext) -> None:
+        assert self.stack[-1] is ctx
+        self.stack.pop()
+        self.nvic.complete(ctx.irqn)
+        best = self.nvic.best_pending()
+        if best is not None and best[0] < self.current_priority():
+            self._dispatch()  # tail-chain or nested preemption of what was below
+            return
+        if not self.stack and self.rtos is not None:
+            self.rtos.reschedule()
+        self._resume(self._top())
+
+
+class Rtos:
+    """FreeRTOS-like scheduler: priorities (higher number = more urgent), tick delays, preemption.
+
+    The tick comes from the SysTick exception (``systick_handler``, bound by the board's
+    firmware to exception -1 with its cost); ``tick_hz`` is configTICK_RATE_HZ.
+    """
+
+    def __init__(self, cpu: Cpu, tick_hz: int = 1000):
+        self.cpu, self.kernel, self.tick_hz = cpu, cpu.kernel, tick_hz
+        cpu.rtos = self
+        self.tasks: list[Task] = []
+        self.current: Task | None = None
+        self.tick_count = 0
+
+    def create_task(self, name: str, coro, priority: int) -> Task:
+        """xTaskCreate: the task is ready and runs when the scheduler picks it."""
+        t = Task(name, coro, priority)
+        self.tasks.append(t)
+        if self.kernel is not None:
+            self.kernel.after(0, self._kick, prio=PRIO_CPU)
+        return t
+
+    def _kick(self):
+        if not self.cpu.stack:
+            self.reschedule()
+            self.cpu._resume(self.current)
+
+    # awaitables
+    @staticmethod
+    def delay(ticks: int) -> _Req:
+        """vTaskDelay(ticks)."""
+        return _Req("delay", ticks)
+
+    @staticmethod
+    def delay_until(wake_tick: int) -> _Req:
+        """vTaskDelayUntil: block until the tick count reaches ``wake_tick``."""
+        return _Req("delay_until", wake_tick)
+
+    def systick_handler(self) -> None:
+        """xPortSysTickHandler: advance the tick, unblock tasks whose delay expired."""
+        self.tick_count += 1
+        for t in self.tasks:
+            if t.state == "blocked" and t.wake_tick is not None and t.wake_tick <= self.tick_count:
+                t.state, t.wake_tick = "ready", None
+
+    def reschedule(self) -> None:
+        """Pick the most urgent ready task (called in thread mode, after exceptions return)."""
+        ready = [t for t in self.tasks if t.state == "ready"]
+        best = max(ready, key=lambda t: t.priority, default=None)
+        cur = self.current
+        if cur is not None and cur.state == "ready" and best is not None and best.priority <= cur.priority:
+            best = cur  # equal priority does not preempt (no time slicing)
+        if best is cur:
+            if cur is not None and not cur.started:
+                self._start(cur)
+            return
+        self.cpu._pause(cur)
+        self.current = best
+        if best is not None and not best.started:
+            self._start(best)
+
+    def _start(self, task: Task):
+        task.started = True
+        self.kernel.after(0, self._step, task, prio=PRIO_CPU)
+
+    def _step(self, task: Task) -> None:
+        if self.current is not task or self.cpu.stack:
+            task.remaining, task.on_done = 0, lambda: self._step(task)
+            return
+        try:
+            req = self.cpu.run_code(task.coro.send, None)
+        except StopIteration:
+            task.state = "done"
+            self._switch()
+            return
+        if req.kind == "cycles":
+            self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
+            self.cpu._busy(task, self.cpu.clock.cycles(req.arg), lambda: self._step(task))
+        elif req.kind in ("delay", "delay_until"):
+            wake = self.tick_count + req.arg if req.kind == "delay" else req.arg
+            if wake <= self.tick_count:
+                self.kernel.after(0, self._step, task, prio=PRIO_CPU)
+                return
+            task.state, task.wake_tick = "blocked", wake
+            task.on_done = lambda: self._step(task)
+            task.remaining = 0
+            self._switch()
+        else:
+            raise TypeError(f"task {task.name} awaited an unknown request {req.kind}")
+
+    def _switch(self):
+        self.current = None
+        self.reschedule()
+        self.cpu._resume(self.current)

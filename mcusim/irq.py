@@ -1,0 +1,178 @@
+"""Interrupt controllers. The Cortex-M NVIC: enable, pending, active, priority, as registers.
+
+Peripherals drive interrupt *lines*: ``nvic.set_line(n, level)``. A rising line sets the pending
+bit (it stays latched until the handler is entered, as on the chip); when a handler returns and its
+line is still asserted, the interrupt becomes pending again. Dispatch decisions (preemption by
+priority, 12-cycle entry latency) belong to the CPU model in :mod:`mcusim.firmware`.
+
+System exceptions use negative numbers as in CMSIS: SysTick = -1, PendSV = -2.
+"""
+
+from __future__ import annotations
+
+from .registers import Field, Peripheral, Register
+
+SYSTICK = -1
+PENDSV = -2
+
+
+def _words(name, offset, count):
+    # set/clear/read views of the NVIC state; bus_read/write_register below implement them
+    return tuple(Register(f"{name}{k}", offset + 4 * k) for k in range(count))
+
+
+class Nvic(Peripheral):
+    """NVIC at 0xE000E100 (ISER, ICER, ISPR, ICPR, IABR, IPR). ``prio_bits`` implemented bits."""
+
+    SIZE = 0x400
+    REGISTERS = (
+        _words("ISER", 0x000, 8)
+        + _words("ICER", 0x080, 8)
+        + _words("ISPR", 0x100, 8)
+        + _words("ICPR", 0x180, 8)
+        + _words("IABR", 0x200, 8)
+        + tuple(Register(f"IPR{k}", 0x300 + 4 * k) for k in range(60))
+    )
+
+    def __init__(self, name="NVIC", num_irqs=98, prio_bits=4):
+        super().__init__(name)
+        self.num_irqs, self.prio_bits = num_irqs, prio_bits
+        self.enabled: set[int] = set()
+        self.pending: set[int] = set()
+        self.active: set[int] = set()
+        self.lines: dict[int, bool] = {}
+        self.priority: dict[int, int] = {}
+        self.cpu = None  # the CPU model; told when something may need dispatching
+        self.line_listeners = []  # fn(irqn, level) for traces
+
+    # --- peripheral side -------------------------------------------------------------
+    def set_line(self, irqn: int, level: bool) -> None:
+        level = bool(level)
+        if self.lines.get(irqn, False) == level:
+            return
+        self.lines[irqn] = level
+        for fn in self.line_listeners:
+            fn(irqn, level)
+        if level:
+            self.set_pending(irqn)
+
+    def set_pending(self, irqn: int) -> None:
+        self.pending.add(irqn)
+        if self.cpu is not None:
+            self.cpu.request_dispatch()
+
+    def prio(self, irqn: int) -> int:
+        return self.priority.get(irqn, 0)
+
+    def best_pending(self):
+        """(priority, irqn) of the most urgent pending, enabled interrupt, or None."""
+        best = None
+        for n in self.pending:
+            if n < 0 or n in self.enabled:
+                key = (self.prio(n), n)
+                if best is None or key < best:
+                    best = key
+        return best
+
+    def acknowledge(self, irqn: int) -> None:
+        self.pending.discard(irqn)
+        self.active.add(irqn)
+
+    def complete(self, irqn: int) -> None:
+        self.active.discard(irqn)
+        if self.lines.get(irqn, False):
+            self.pending.add(irqn)
+
+    # --- register side -----------------------------------------------------------------
+    @staticmethod
+    def _bits(word, s):
+        return sum(1 << (n - 32 * word) for n in s if 32 * word <= n < 32 * word + 32)
+
+    @staticmethod
+    def _word(reg_name):
+        return int("".join(c for c in reg_name if c.isdigit()))
+
+    def _changed(self):
+        if self.cpu is not None:
+            self.cpu.request_dispatch()
+
+    def bus_read(self, offset, size, address):
+        reg = self._reg_at(offset, size, address)
+        w = self._word(reg.name)
+        if reg.name.startswith(("ISER", "ICER")):
+            v = self._bits(w, self.enabled)
+        elif reg.name.startswith(("ISPR", "ICPR")):
+            v = self._bits(w, self.pending)
+        elif reg.name.startswith("IABR"):
+            v = self._bits(w, self.active)
+        else:
+            return super().bus_read(offset, size, address)
+        shift = (offset % 4) * 8
+        return (v >> shift) & ((1 << (8 * size)) - 1)
+
+    def _set_from(self, new, target, add):
+        # ``new`` is the written word; the register name tells which 32 IRQs it covers
+        for bit in range(32):
+            if new >> bit & 1:
+                n = 32 * self._cur_word + bit
+                if n < self.num_irqs:
+                    (target.add if add else target.discard)(n)
+        self._changed()
+
+    def write_register(self, reg, data, lanes=-1):
+        if reg.name.startswith("IPR"):
+            return super().write_register(reg, data, lanes)
+        self._cur_word = self._word(reg.name)
+        data &= lanes
+        if reg.name.startswith("ISER"):
+            self._set_from(data, self.enabled, True)
+        elif reg.name.startswith("ICER"):
+            self._set_from(data, self.enabled, False)
+        elif reg.name.startswith("ISPR"):
+            self._set_from(data, self.pending, True)
+        elif reg.name.startswith("ICPR"):
+            self._set_from(data, self.pending, False)
+
+    def bus_write(self, offset, data, size, address):
+        reg = self._reg_at(offset, size, address)
+        super().bus_write(offset, data, size, address)
+        if reg.name.startswith("IPR"):
+            keep = (0xFF << (8 - self.prio_bits)) & 0xFF
+            word = self._word(reg.name)
+            v = self.value[reg.name]
+            v &= keep * 0x01010101
+            self.value[reg.name] = v
+            for b in range(4):
+                self.priority[4 * word + b] = ((v >> (8 * b)) & 0xFF) >> (8 - self.prio_bits)
+            self._changed()
+
+    def set_priority(self, irqn: int, prio: int) -> None:
+        """Priority in implemented bits (0 = most urgent), as HAL_NVIC_SetPriority(n, prio, 0)."""
+        self.priority[irqn] = prio
+        if irqn >= 0:
+            word, b = divmod(irqn, 4)
+            reg = f"IPR{word}"
+            v = self.value[reg] & ~(0xFF << (8 * b))
+            self.value[reg] = v | ((prio << (8 - self.prio_bits)) & 0xFF) << (8 * b)
+        self._changed()
+
+
+class Scb(Peripheral):
+    """The part of the System Control Block that firmware here touches: SHPR2/SHPR3 priorities."""
+
+    SIZE = 0x90
+    REGISTERS = (
+        Register("SHPR2", 0x1C, on_write="_write_shpr", fields=(Field("PRI_11", 24, 8),)),
+        Register("SHPR3", 0x20, on_write="_write_shpr", fields=(Field("PRI_14", 16, 8), Field("PRI_15", 24, 8))),
+    )
+
+    def __init__(self, nvic: Nvic, name="SCB"):
+        super().__init__(name)
+        self.nvic = nvic
+
+    def _write_shpr(self, old, new):
+        v = self.value["SHPR3"]
+        shift = 8 - self.nvic.prio_bits
+        self.nvic.priority[PENDSV] = ((v >> 16) & 0xFF) >> shift
+        self.nvic.priority[SYSTICK] = ((v >> 24) & 0xFF) >> shift
+        self.nvic._changed()

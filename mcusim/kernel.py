@@ -1,0 +1,77 @@
+"""The event queue and the run loop.
+
+Events are ordered by (time, priority, sequence number): the same inputs give the same order,
+byte for byte. Cancelling is lazy (a flag), so a cancelled event costs one pop.
+"""
+
+from __future__ import annotations
+
+import heapq
+
+# Priorities within one base tick: hardware state changes first, then the plant, then the CPU
+# (firmware sees the hardware state of its tick), then observers such as trace samplers.
+PRIO_HW = 0
+PRIO_INPUT = 5
+PRIO_PLANT = 10
+PRIO_CPU = 20
+PRIO_OBSERVE = 30
+
+
+class Event:
+    __slots__ = ("time", "fn", "args", "cancelled")
+
+    def __init__(self, time, fn, args):
+        self.time, self.fn, self.args, self.cancelled = time, fn, args, False
+
+    def cancel(self):
+        self.cancelled = True
+
+
+class Kernel:
+    def __init__(self, timebase):
+        self.timebase = timebase
+        self.now = 0
+        self._queue = []
+        self._seq = 0
+        self.events = 0  # events processed
+
+    def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
+        if time < self.now:
+            raise ValueError(f"cannot schedule in the past: {time} < now {self.now}")
+        ev = Event(time, fn, args)
+        self._seq += 1
+        heapq.heappush(self._queue, (time, prio, self._seq, ev))
+        return ev
+
+    def after(self, delay: int, fn, *args, prio: int = PRIO_HW) -> Event:
+        return self.at(self.now + delay, fn, *args, prio=prio)
+
+    def next_time(self):
+        q = self._queue
+        while q and q[0][3].cancelled:
+            heapq.heappop(q)
+        return q[0][0] if q else None
+
+    def run_until(self, t_end: int, stop=None) -> None:
+        """Process every event with time <= t_end; leave ``now`` at t_end.
+
+        ``stop`` is an optional callable checked after each event; when it returns true the run
+        ends at the current time.
+        """
+        q = self._queue
+        pop = heapq.heappop
+        n = 0
+        try:
+            while q and q[0][0] <= t_end:
+                time, _, _, ev = pop(q)
+                if ev.cancelled:
+                    continue
+                self.now = time
+                ev.cancelled = True  # fired events count as done, so cancel() on them is harmless
+                ev.fn(*ev.args)
+                n += 1
+                if stop is not None and stop():
+                    return
+            self.now = max(self.now, t_end)
+        finally:
+            self.events += n

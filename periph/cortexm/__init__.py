@@ -1,0 +1,1 @@
+"""Cortex-M core peripherals shared by every Arm MCU profile."""
