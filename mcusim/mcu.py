@@ -14,7 +14,8 @@ class Mcu:
         self.rtos = None
         self.pins: dict[str, Net] = {}
         self.periph: dict[str, object] = {}
-        self.clocks: dict[str, object] = {}
+        self.clocks: dict[str, object] = {}       # name -> Clock (e.g. "APB1_TIM")
+        self.clock_users: dict[str, list] = {}    # clock name -> peripherals with set_kernel_clock
 
     def pin(self, name: str) -> Net:
         try:

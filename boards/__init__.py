@@ -1,0 +1,1 @@
+"""Board and system profiles as data (TOML). ``mcusim boards`` lists them."""

@@ -1,0 +1,197 @@
+"""main.c of the ControlMotorROS firmware: pin and timer setup, two FreeRTOS PID tasks and the
+micro-ROS app with the topics ``/motorN/set_pos`` (rad, subscribed), ``/motorN/enable`` (bool,
+subscribed) and ``/motorN/get_pos`` (rad, published), N = 1, 2.
+
+Board wiring (thesis pin table): bridge A = TIM1 CH1/CH2 on PE9/PE11, EN-A on PF15; bridge B =
+TIM2 CH1/CH4 on PA5/PA3, EN-B on PF5; motor 1 encoder = TIM3 on PB4/PB5; motor 2 encoder = TIM4 on
+PD12/PD13.
+
+Where the thesis gives no figure, these are our choices (all overridable as ``firmware.<name>``):
+PID period 5 ms, executor spin 10 ms, the gains below, and the declared cycle costs. The micro-ROS
+transport is not simulated: a message published by the host is taken by the executor at its next
+spin, as rclc_executor_spin_some would find it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from firmware.controlmotor import VARIANTS
+from firmware.controlmotor.encoder import (Encoder, encoder_get_position, encoder_set_reset, encoder_timn_start,
+                                           encoder_update_callback)
+from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
+from firmware.controlmotor.pwm import Pwm, pwm_enable, pwm_timn_set_duty, pwm_timn_start
+from firmware.stm32hal import cortex, gpio as hal_gpio, tim as hal_tim
+from firmware.stm32hal.rcc import SystemCoreClock
+from firmware.stm32hal.regs import Stm32f7
+from mcusim.errors import ConfigError
+
+TIM3_IRQn, TIM4_IRQn = 29, 30
+configTICK_RATE_HZ = 1000
+
+DEFAULTS = {
+    "variant": "correct",
+    "pid_period_ms": 5,
+    "executor_period_ms": 10,
+    "kp": 400.0,            # % duty per rad of output-shaft error
+    "kd": 0.02,             # τD, s
+    "ki": 0.25,             # τI, s
+    "windup_limit": 2.0,    # bound on Σe (rad·samples)
+    "encoder_filter": 0,    # ICxF of the encoder inputs
+    "counts_per_turn": 1920,
+    # declared execution costs in core cycles (estimates for -O2 code on the M7 with FPU)
+    "cycles_pid": 1500,
+    "cycles_encoder_isr": 120,
+    "cycles_systick": 150,
+    "cycles_executor": 6000,
+}
+
+
+@dataclass
+class Topic:
+    name: str
+    type: type
+    direction: str           # "sub" (host -> firmware) or "pub" (firmware -> host)
+    value: object = None
+    count: int = 0
+
+
+class ControlMotorFirmware:
+    def __init__(self, mcu, **params):
+        unknown = set(params) - set(DEFAULTS)
+        if unknown:
+            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
+                              f"(known: {', '.join(sorted(DEFAULTS))})")
+        self.p = {**DEFAULTS, **params}
+        if self.p["variant"] not in VARIANTS:
+            raise ConfigError(f"firmware.variant must be one of {VARIANTS}, not {self.p['variant']!r}")
+        self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
+        self.dev = Stm32f7(mcu.bus)
+        self.pid = PidController()
+        self.enabled = {BRIDGE_A: True, BRIDGE_B: True}
+        self.topics: dict[str, Topic] = {}
+        for n in (1, 2):
+            self.topics[f"/motor{n}/set_pos"] = Topic(f"/motor{n}/set_pos", float, "sub")
+            self.topics[f"/motor{n}/enable"] = Topic(f"/motor{n}/enable", bool, "sub")
+            self.topics[f"/motor{n}/get_pos"] = Topic(f"/motor{n}/get_pos", float, "pub")
+        self._inbox: list[tuple[str, object]] = []
+        self.main()
+
+    # --- host side of the micro-ROS topics --------------------------------------------------
+    def publish(self, name: str, value) -> None:
+        topic = self.topics.get(name)
+        if topic is None or topic.direction != "sub":
+            subs = [t for t in self.topics if self.topics[t].direction == "sub"]
+            raise ConfigError(f"no subscribed topic {name!r}; the firmware subscribes to {', '.join(subs)}")
+        self._inbox.append((name, topic.type(value)))
+
+    def topic(self, name: str):
+        if name not in self.topics:
+            raise ConfigError(f"no topic {name!r}; topics: {', '.join(self.topics)}")
+        return self.topics[name].value
+
+    def set_point(self, motor: int) -> float:
+        return self.pid.pids[motor - 1].set_point
+
+    # --- main.c -------------------------------------------------------------------------------
+    def main(self) -> None:
+        dev, v = self.dev, self.p["variant"]
+        self.MX_GPIO_Init()
+        self.htim1 = hal_tim.TIM_HandleTypeDef(dev.TIM1)
+        self.htim2 = hal_tim.TIM_HandleTypeDef(dev.TIM2)
+        self.htim3 = hal_tim.TIM_HandleTypeDef(dev.TIM3)
+        self.htim4 = hal_tim.TIM_HandleTypeDef(dev.TIM4)
+        self.pwm = {
+            BRIDGE_A: Pwm(self.htim1, 2, hal_tim.TIM_CHANNEL_1, hal_tim.TIM_CHANNEL_2, dev.GPIOF, 15, v),
+            BRIDGE_B: Pwm(self.htim2, 1, hal_tim.TIM_CHANNEL_1, hal_tim.TIM_CHANNEL_4, dev.GPIOF, 5, v),
+        }
+        cpt, filt = self.p["counts_per_turn"], self.p["encoder_filter"]
+        self.enc = {
+            BRIDGE_A: Encoder(self.htim3, cpt, TIM3_IRQn, v, filter=filt),
+            BRIDGE_B: Encoder(self.htim4, cpt, TIM4_IRQn, v, filter=filt),
+        }
+        period = self.p["pid_period_ms"] / 1000
+        for b in (BRIDGE_A, BRIDGE_B):
+            pwm_timn_start(self.pwm[b])
+            pwm_enable(self.pwm[b], True)
+            self.pid.pid_set_parameters(b, self.p["kp"], self.p["kd"], self.p["ki"], self.p["windup_limit"])
+            self.pid.pid_set_period(b, period)
+            self.pid.pid_reset(b)
+        for b, irqn in ((BRIDGE_A, TIM3_IRQn), (BRIDGE_B, TIM4_IRQn)):
+            self.cpu.vector(irqn, (lambda e=self.enc[b]: self.encoder_irq_handler(e)),
+                            cost=self.p["cycles_encoder_isr"])
+            cortex.HAL_NVIC_SetPriority(dev, irqn, 5)
+            cortex.HAL_NVIC_EnableIRQ(dev, irqn)
+            encoder_timn_start(self.enc[b])
+        # FreeRTOS: tasks, then vTaskStartScheduler (SysTick at configTICK_RATE_HZ)
+        self.cpu.vector(cortex.SysTick_IRQn, self.rtos.systick_handler, cost=self.p["cycles_systick"])
+        self.rtos.create_task("pid_a", self.pid_task(BRIDGE_A), priority=3)
+        self.rtos.create_task("pid_b", self.pid_task(BRIDGE_B), priority=3)
+        self.rtos.create_task("microros", self.microros_task(), priority=2)
+        cortex.HAL_SYSTICK_Config(dev, SystemCoreClock // configTICK_RATE_HZ)
+
+    def MX_GPIO_Init(self) -> None:
+        dev = self.dev
+        dev.RCC.AHB1ENR = dev.RCC.AHB1ENR | 0b111111  # GPIOA..F clocks
+        dev.RCC.APB2ENR = dev.RCC.APB2ENR | 0b1       # TIM1
+        dev.RCC.APB1ENR = dev.RCC.APB1ENR | 0b111     # TIM2, TIM3, TIM4
+        out = dict(Mode=hal_gpio.GPIO_MODE_OUTPUT_PP, Pull=hal_gpio.GPIO_NOPULL)
+        for port, pin in ((dev.GPIOF, 15), (dev.GPIOF, 5)):
+            hal_gpio.HAL_GPIO_WritePin(port, pin, 0)
+            hal_gpio.HAL_GPIO_Init(port, hal_gpio.GPIO_InitTypeDef(pin, **out))
+        for port, pin, af in ((dev.GPIOE, 9, 1), (dev.GPIOE, 11, 1), (dev.GPIOA, 5, 1), (dev.GPIOA, 3, 1),
+                              (dev.GPIOB, 4, 2), (dev.GPIOB, 5, 2), (dev.GPIOD, 12, 2), (dev.GPIOD, 13, 2)):
+            hal_gpio.HAL_GPIO_Init(port, hal_gpio.GPIO_InitTypeDef(
+                pin, Mode=hal_gpio.GPIO_MODE_AF_PP, Pull=hal_gpio.GPIO_NOPULL,
+                Speed=hal_gpio.GPIO_SPEED_FREQ_VERY_HIGH, Alternate=af))
+
+    # --- interrupts -------------------------------------------------------------------------
+    def encoder_irq_handler(self, enc: Encoder) -> None:
+        """TIM3_IRQHandler / TIM4_IRQHandler -> HAL_TIM_IRQHandler -> PeriodElapsedCallback."""
+        hal_tim.HAL_TIM_IRQHandler(enc.htim, lambda h: encoder_update_callback(enc))
+
+    # --- tasks --------------------------------------------------------------------------------
+    async def pid_task(self, bridge: int):
+        period_ticks = self.p["pid_period_ms"] * configTICK_RATE_HZ // 1000
+        wake = self.rtos.tick_count
+        while True:
+            if self.enabled[bridge]:
+                position = encoder_get_position(self.enc[bridge])
+                await self.cpu.cycles(self.p["cycles_pid"])
+                duty = self.pid.pid_apply(bridge, position)
+                pwm_timn_set_duty(self.pwm[bridge], duty)
+            wake += period_ticks
+            await self.rtos.delay_until(wake)
+
+    async def microros_task(self):
+        period_ticks = self.p["executor_period_ms"] * configTICK_RATE_HZ // 1000
+        wake = self.rtos.tick_count
+        while True:
+            await self.cpu.cycles(self.p["cycles_executor"])
+            inbox, self._inbox = self._inbox, []
+            for name, value in inbox:  # subscription callbacks
+                motor = int(name[6])
+                bridge = motor - 1
+                self.topics[name].value = value
+                self.topics[name].count += 1
+                if name.endswith("/set_pos"):
+                    self.pid.pid_set_point(bridge, value)
+                elif name.endswith("/enable"):
+                    self.set_enable(bridge, value)
+            for b, n in ((BRIDGE_A, 1), (BRIDGE_B, 2)):  # publishers
+                t = self.topics[f"/motor{n}/get_pos"]
+                t.value = encoder_get_position(self.enc[b])
+                t.count += 1
+            wake += period_ticks
+            await self.rtos.delay_until(wake)
+
+    def set_enable(self, bridge: int, enable: bool) -> None:
+        if enable and not self.enabled[bridge]:
+            self.pid.pid_reset(bridge)
+        if not enable:
+            pwm_timn_set_duty(self.pwm[bridge], 0.0)
+        pwm_enable(self.pwm[bridge], enable)
+        self.enabled[bridge] = enable
+
+    def reset_position(self, bridge: int) -> None:
+        encoder_set_reset(self.enc[bridge])

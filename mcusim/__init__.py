@@ -1,0 +1,7 @@
+"""mcusim: a tick-accurate simulator of microcontroller peripherals, firmware and plants."""
+
+from .errors import BusFault, ConfigError, McusimError, UnsupportedConfiguration
+from .sim import Simulation, load
+
+__all__ = ["load", "Simulation", "McusimError", "ConfigError", "UnsupportedConfiguration", "BusFault"]
+__version__ = "0.1.0"

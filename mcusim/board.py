@@ -1,0 +1,186 @@
+"""Board profiles: read a TOML profile, apply ``--set`` overrides, build the system.
+
+The kernel knows no vendor: peripheral and firmware classes are named in the profile as
+``"module:Class"`` and imported here by name; plant parts by ``kind``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.resources
+import tomllib
+from fractions import Fraction
+from pathlib import Path
+
+from .errors import ConfigError
+from .firmware import Cpu, Rtos
+from .irq import Nvic, Scb
+from .kernel import Kernel
+from .mcu import Mcu
+from .registers import Bus
+from .time import TimeBase, parse_frequency
+
+PART_KINDS = {
+    "dcmotor": "mcusim.plant.dcmotor:DcMotor",
+    "l6206": "mcusim.plant.l6206:L6206Bridge",
+    "encoder": "mcusim.plant.encoder:QuadratureEncoder",
+}
+PART_TERMINALS = {"l6206": ("IN1", "IN2", "EN"), "encoder": ("A", "B"), "dcmotor": ()}
+
+
+def board_names() -> list[str]:
+    files = importlib.resources.files("boards")
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
+
+
+def read_profile(board: str) -> tuple[dict, str]:
+    """The parsed profile of a board name (``nucleo-f746``) or a path to a .toml file."""
+    path = Path(board)
+    if path.suffix == ".toml" and path.exists():
+        text, where = path.read_text(), str(path)
+    else:
+        res = importlib.resources.files("boards") / f"{board}.toml"
+        if not res.is_file():
+            raise ConfigError(f"unknown board {board!r}; known boards: {', '.join(board_names())}")
+        text, where = res.read_text(), f"boards/{board}.toml"
+    try:
+        return tomllib.loads(text), where
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+
+
+def _import(spec: str, where: str):
+    try:
+        module, _, name = spec.partition(":")
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise ConfigError(f"{where}: cannot load {spec!r}: {exc}") from None
+
+
+def parse_value(text: str):
+    """A ``--set`` value: true/false, an int, a float, else the string itself."""
+    low = text.strip().lower()
+    if low in ("true", "on", "yes"):
+        return True
+    if low in ("false", "off", "no"):
+        return False
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
+    """Sort ``--set`` keys into part parameters, firmware parameters and topic messages."""
+    parts = {p["name"]: {} for p in profile.get("part", [])}
+    firmware, topics = {}, []
+    for key, value in overrides.items():
+        if key.startswith("/"):
+            topics.append((key, value))
+            continue
+        head, dot, name = key.partition(".")
+        if not dot or not name:
+            raise ConfigError(f"--set {key}: expected a topic (/motor1/set_pos) or part.parameter (motor1.J)")
+        if head == "firmware":
+            firmware[name] = value
+        elif head in parts:
+            parts[head][name] = value
+        else:
+            raise ConfigError(f"--set {key}: no part {head!r}; parts: {', '.join(parts)}, firmware")
+    return parts, firmware, topics
+
+
+def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict):
+    """Instantiate kernel, MCU, peripherals, plant and (optionally) firmware. Returns a namespace dict."""
+    try:
+        board = profile["board"]
+        clocks = profile["clocks"]
+        core = profile["core"]
+    except KeyError as exc:
+        raise ConfigError(f"{where}: missing table [{exc.args[0]}]") from None
+    sysclk = parse_frequency(clocks["sysclk"])
+    base = [parse_frequency(f) for f in clocks.get("base", [clocks["sysclk"]])]
+    timebase = TimeBase(base)
+    kernel = Kernel(timebase)
+    bus = Bus(f"{board['name']}.bus")
+    mcu = Mcu(board["mcu"], kernel, bus, timebase.clock("SYSCLK", sysclk))
+    mcu.clocks["SYSCLK"] = mcu.core_clock
+
+    nvic = Nvic(num_irqs=core.get("nvic_irqs", 98), prio_bits=core.get("nvic_prio_bits", 4))
+    mcu.nvic = nvic
+    bus.attach(0xE000E100, nvic)
+    bus.attach(0xE000ED00, Scb(nvic))
+    for spec in profile.get("peripheral", []):
+        cls = _import(spec["class"], f"{where}: peripheral {spec.get('name')}")
+        kwargs = {k: v for k, v in spec.items() if k not in ("name", "class", "base", "clock")}
+        if spec["class"].endswith(":Rcc"):
+            kwargs["sysclk_hz"] = sysclk
+        if "clock" in spec:
+            if spec["clock"] not in mcu.clocks:
+                raise ConfigError(f"{where}: peripheral {spec['name']}: no clock {spec['clock']!r} "
+                                  f"(clocks: {', '.join(mcu.clocks)})")
+            kwargs["clock"] = mcu.clocks[spec["clock"]]
+        try:
+            p = cls(spec["name"], mcu, **kwargs)
+        except TypeError as exc:
+            raise ConfigError(f"{where}: peripheral {spec['name']}: {exc}") from None
+        mcu.periph[spec["name"]] = p
+        bus.attach(spec["base"], p)
+        if "clock" in spec:
+            mcu.clock_users.setdefault(spec["clock"], []).append(p)
+
+    from periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
+    hclk = mcu.clocks.get("HCLK", mcu.core_clock)
+    ref = timebase.clock("SysTick_ref", hclk.hz / 8) if core.get("systick_ref") == "HCLK/8" else hclk
+    systick = SysTick("SysTick", mcu, mcu.core_clock, ref)
+    mcu.periph["SysTick"] = systick
+    bus.attach(0xE000E010, systick)
+    mcu.cpu = Cpu(kernel, mcu.core_clock, nvic, entry_latency=core.get("entry_latency", 12))
+    mcu.rtos = Rtos(mcu.cpu)
+
+    # plant parts and wiring
+    wiring: dict[str, dict[str, str]] = {}
+    for pin, target in profile.get("pins", {}).items():
+        part, _, terminal = target.partition(".")
+        wiring.setdefault(part, {})[terminal] = pin
+    parts = {}
+    for spec in profile.get("part", []):
+        name, kind = spec["name"], spec.get("kind")
+        if kind not in PART_KINDS:
+            raise ConfigError(f"{where}: part {name}: unknown kind {kind!r} (kinds: {', '.join(PART_KINDS)})")
+        cls = _import(PART_KINDS[kind], f"{where}: part {name}")
+        params = {k: v for k, v in spec.items() if k not in ("name", "kind", "motor")}
+        params.update(part_overrides.get(name, {}))
+        args = {}
+        if "motor" in spec:
+            if spec["motor"] not in parts:
+                raise ConfigError(f"{where}: part {name}: motor {spec['motor']!r} must be declared before it")
+            args["motor"] = parts[spec["motor"]]
+        for term in PART_TERMINALS[kind]:
+            pin = wiring.get(name, {}).get(term)
+            if pin is None:
+                raise ConfigError(f"{where}: part {name}: terminal {term} is not wired in [pins]")
+            args[term.lower()] = mcu.pin(pin)
+        try:
+            parts[name] = cls(kernel, name=name, **args, **params)
+        except TypeError as exc:
+            raise ConfigError(f"{where}: part {name}: {exc}") from None
+    for part, terms in wiring.items():
+        if part not in parts:
+            raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
+
+    firmware = None
+    if with_firmware:
+        fw = profile.get("firmware")
+        if fw is None:
+            raise ConfigError(f"{where}: the board has no [firmware]")
+        cls = _import(fw["class"], f"{where}: firmware")
+        params = {k: v for k, v in fw.items() if k != "class"}
+        params.update(firmware_params)
+        firmware = mcu.cpu.run_code(lambda: cls(mcu, **params))
+    elif firmware_params:
+        raise ConfigError(f"firmware parameters {', '.join(firmware_params)} given, but the firmware is off")
+    return {"timebase": timebase, "kernel": kernel, "mcu": mcu, "parts": parts, "firmware": firmware,
+            "board": board, "profile": profile, "sysclk": Fraction(sysclk)}

@@ -1,0 +1,159 @@
+"""The ``mcusim`` command line: ``boards``, ``run``, ``bench``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import time
+
+from .errors import ConfigError, McusimError, TimeError
+from .time import parse_duration
+
+EXAMPLES_RUN = """examples:
+  mcusim run nucleo-f746
+  mcusim run nucleo-f746 --duration 500ms --set /motor1/set_pos=1.57 --vcd out.vcd
+  mcusim run nucleo-f746 --set motor1.load_inertia=2e-5 --set firmware.variant=thesis --summary s.json
+"""
+
+BENCH_SETPOINTS = {"/motor1/set_pos": 3 * math.pi, "/motor2/set_pos": -math.pi / 2}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2, no traceback
+        self.print_usage(sys.stderr)
+        print(f"mcusim: error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
+def _kv(text: str) -> tuple[str, str]:
+    key, eq, value = text.partition("=")
+    if not eq or not key:
+        raise argparse.ArgumentTypeError(f"--set expects KEY=VALUE, got {text!r}")
+    return key.strip(), value.strip()
+
+
+def _duration(text: str):
+    try:
+        return parse_duration(text)
+    except TimeError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
+    sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
+    sub.add_parser("boards", help="list the board profiles")
+    r = sub.add_parser("run", help="run a board's firmware against its plant", epilog=EXAMPLES_RUN,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml")
+    r.add_argument("--duration", type=_duration, default=parse_duration("2s"), help="simulated time (default 2s)")
+    r.add_argument("--set", dest="sets", type=_kv, action="append", default=[], metavar="KEY=VALUE",
+                   help="topic (/motor1/set_pos=1.57) or parameter (motor1.J=6e-6, firmware.variant=thesis)")
+    r.add_argument("--vcd", metavar="FILE", help="write pins, IRQ lines and plant variables as VCD")
+    r.add_argument("--vcd-sample", type=_duration, default=parse_duration("50us"),
+                   help="sampling period of the real-valued plant variables in the VCD (default 50us)")
+    r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
+    r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
+    b = sub.add_parser("bench", help="real-time factor of a fixed scenario",
+                       epilog="example:\n  mcusim bench nucleo-f746 --repeat 3",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    b.add_argument("board")
+    b.add_argument("--duration", type=_duration, default=parse_duration("1s"))
+    b.add_argument("--repeat", type=int, default=3)
+    b.add_argument("--json", metavar="FILE", help="write the figures as JSON")
+    return p
+
+
+def _print_summary(s: dict) -> None:
+    rtf = s["realtime_factor"]
+    print(f"{s['board']}: simulated {s['simulated_s']:.6f} s in {s['wall_s']:.2f} s wall "
+          f"({rtf:.3f}x real time), {s['events']:,} events" if rtf else
+          f"{s['board']}: simulated {s['simulated_s']:.6f} s, {s['events']:,} events")
+    if s["motors"]:
+        print(f"{'motor':<10}{'angle (rad)':>14}{'setpoint (rad)':>16}{'peak current (A)':>18}")
+        for name, m in s["motors"].items():
+            sp = m.get("setpoint_rad")
+            print(f"{name:<10}{m['angle_rad']:>14.4f}{(f'{sp:.4f}' if sp is not None else '-'):>16}"
+                  f"{m['peak_current_a']:>18.3f}")
+
+
+def cmd_run(args) -> int:
+    from .sim import load
+    sim = load(args.board, firmware=not args.no_firmware, overrides=dict(args.sets))
+    if args.vcd:
+        sim.trace_vcd(args.vcd, sample=args.vcd_sample)
+    try:
+        sim.run(seconds=args.duration)
+    finally:
+        sim.close()
+    s = sim.summary()
+    _print_summary(s)
+    if args.vcd:
+        print(f"VCD written to {args.vcd}")
+    if args.summary:
+        with open(args.summary, "w") as f:
+            json.dump(s, f, indent=2)
+    return 0
+
+
+def bench(board: str, duration, repeat: int = 3) -> dict:
+    """Run the fixed two-motor step scenario ``repeat`` times; figures of the median run."""
+    from .sim import load
+    runs = []
+    for _ in range(repeat):
+        sim = load(board, overrides=BENCH_SETPOINTS)
+        t0 = time.perf_counter()
+        sim.run(seconds=duration)
+        wall = time.perf_counter() - t0
+        runs.append((wall, sim.kernel.events, sim.time_s))
+    walls = [r[0] for r in runs]
+    wall = statistics.median(walls)
+    events, sim_s = runs[0][1], runs[0][2]
+    return {"board": board, "scenario": "motor1 -> 3π rad, motor2 -> -π/2 rad", "simulated_s": sim_s,
+            "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
+            "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
+            "repeat": repeat}
+
+
+def cmd_bench(args) -> int:
+    r = bench(args.board, args.duration, args.repeat)
+    print(f"{r['board']} bench ({r['scenario']}): {r['simulated_s']:.3f} s simulated, "
+          f"median wall {r['wall_s_median']:.2f} s (min {r['wall_s_min']:.2f}, max {r['wall_s_max']:.2f}) "
+          f"over {r['repeat']} runs")
+    print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s; "
+          f"{r['events']:,} events ({r['events_per_wall_s']:,.0f} per wall s)")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(r, f, indent=2)
+    return 0
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.cmd == "boards":
+            from .board import board_names, read_profile
+            for name in board_names():
+                print(f"{name:<16}{read_profile(name)[0]['board'].get('description', '')}")
+            return 0
+        if args.cmd == "run":
+            return cmd_run(args)
+        if args.cmd == "bench":
+            return cmd_bench(args)
+    except (ConfigError, TimeError) as exc:
+        print(f"mcusim: error: {exc}", file=sys.stderr)
+        return 2
+    except McusimError as exc:
+        print(f"mcusim: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("mcusim: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,481 @@
+"""Brushed DC motor + gearbox + load, simulated exactly between events (ARCHITECTURE invariant 4).
+
+Physics (reference/plants.md §1.1), all on the motor shaft::
+
+    L·di/dt   = v_m − R·i − K·ω
+    J_eq·dω/dt = K·i − b·ω − τc·sgn ω − τ_L,m          J_eq = J + load_inertia/N²
+    dθ/dt     = ω
+
+- ``load_torque`` τ_out acts on the output shaft *against positive rotation*. Reflected to the
+  motor it is ``τ_out/(N·η)`` when the motor drives the load (τ_out opposes the motion) and
+  ``τ_out·η/N`` when the load back-drives the motor. [I] The direction is taken from the sign of
+  the motion (or, when stuck, of the candidate breakaway direction), not from the sign of the
+  gear-mesh torque, so it is constant within a segment and needs no extra event.
+- Stiction: at ω = 0 the shaft sticks while ``−τs ≤ K·i − τ_L,m ≤ τs`` (with the τ_L,m of each
+  candidate direction) and breaks away when that is exceeded. τs ≥ τc is required.
+- The terminal voltage comes from a *driver* (an H-bridge, see :mod:`mcusim.plant.l6206`) as an
+  affine law per current-sign domain: ``v_m = V⁺ − R_br·i`` for i > 0 and ``V⁻ − R_br·i`` for
+  i < 0 (the two differ only when a leg conducts through a diode). At i = 0 in a diode state the
+  clamp test of §2.1 decides: grow positive if ``V⁺ − K·ω > 0``, negative if ``V⁻ − K·ω < 0``,
+  otherwise discontinuous conduction (i ≡ 0, terminals float at E = K·ω). With no driver the
+  terminals are open (i ≡ 0 forever).
+
+Simulation: the motor is lazy. Its state is a segment (t0, x0, closed-form trajectory, mode);
+reading ``current``/``speed``/``angle`` evaluates the closed form at ``kernel.now``. An input
+change (the bridge calls :meth:`DcMotor.input_changed`) first advances to now, then picks the new
+mode. Mode-ending and output events are *guards* (linear functions of (i, ω, θ)) located to the
+first base tick at which they have fired (:func:`mcusim.plant.pwl.first_fire`): ω reaching 0,
+stick breakaway, i reaching 0 in a diode state, DCM exit, plus the guards of registered
+providers (bridge over-current, encoder thresholds). Each segment is screened over a horizon H
+(``horizon``, 50 µs); the earliest guard gets one kernel event at its tick (``PRIO_PLANT``), or,
+if none fires, a re-check event at now + H. The horizon doubles after each quiet re-check up to
+``max_horizon`` and returns to ``horizon`` on any other event, so a steady or coasting motor
+costs few events. At a guard event the state is projected where the physics says so (ω := 0 at
+a zero-speed event, i := 0 at a current-zero event) and the mode is re-selected with the same
+guard expressions, so location and re-test cannot disagree by a rounding error.
+
+Cost per segment (pure Python scalar math, eigen-decomposition cached per loop resistance, the
+steady state per (R_total, V, friction+load term)): one closed-form evaluation at the horizon
+(two ``exp``), ~6 flops per guard for the margin test, and ~2·log2(H in ticks) ≈ 30 evaluations
+for each guard that is actually about to fire. Roughly 15–40 µs of host time per segment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+from ..errors import ConfigError
+from ..kernel import PRIO_PLANT
+from . import pwl
+
+INF = math.inf
+
+# driver state when nothing drives the terminals: no current can flow in either direction
+OPEN_CIRCUIT = (-INF, INF, 0.0, True)
+
+
+def _check_overrides(cls, overrides: dict, what: str):
+    known = {f.name for f in fields(cls)}
+    out = {}
+    for key, value in overrides.items():
+        if key not in known:
+            raise ConfigError(f"{what}: unknown parameter {key!r} (known: {', '.join(sorted(known))})")
+        try:
+            out[key] = float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{what}: parameter {key} = {value!r} is not a number") from None
+    return out
+
+
+@dataclass(frozen=True)
+class MotorParams:
+    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (plants.md §1.3)."""
+
+    R: float = 2.18            # armature resistance, Ω
+    L: float = 1.5e-3          # armature inductance, H
+    K: float = 0.0110          # Ke = Kt, V·s/rad = N·m/A
+    J: float = 5e-6            # rotor inertia, kg·m² (motor shaft)
+    tau_c: float = 1.54e-3     # Coulomb friction, N·m (motor shaft)
+    b: float = 6.3e-7          # viscous friction, N·m·s/rad (motor shaft)
+    tau_s: float = 5.0e-3      # stiction (breakaway) torque, N·m (motor shaft)
+    gear_ratio: float = 30.0   # N = ω_motor / ω_output
+    efficiency: float = 0.78   # η (second estimate of §1.3 for 30:1)
+    load_inertia: float = 0.0  # kg·m² on the output shaft
+    load_torque: float = 0.0   # N·m on the output shaft, against positive rotation
+
+    def __post_init__(self):
+        for name in ("R", "L", "K", "J", "gear_ratio"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"motor parameter {name} = {getattr(self, name)} must be positive")
+        for name in ("tau_c", "b", "tau_s", "load_inertia"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"motor parameter {name} = {getattr(self, name)} must not be negative")
+        if not 0 < self.efficiency <= 1:
+            raise ConfigError(f"motor parameter efficiency = {self.efficiency} must be in (0, 1]")
+        if self.tau_s < self.tau_c:
+            raise ConfigError(f"motor parameter tau_s = {self.tau_s} must be >= tau_c = {self.tau_c}")
+        if not math.isfinite(self.load_torque):
+            raise ConfigError(f"motor parameter load_torque = {self.load_torque} must be finite")
+
+    @classmethod
+    def from_mapping(cls, mapping: dict, base: "MotorParams | None" = None) -> "MotorParams":
+        """Defaults (or ``base``) overridden by name; an unknown name raises :class:`ConfigError`."""
+        return replace(base or cls(), **_check_overrides(cls, dict(mapping), "motor"))
+
+    @property
+    def J_eq(self) -> float:
+        return self.J + self.load_inertia / self.gear_ratio ** 2
+
+    def load_reflected(self, direction: int) -> float:
+        """τ_L,m for motion (or breakaway) in ``direction`` (+1/−1)."""
+        t = self.load_torque
+        if t * direction > 0:       # the load opposes the motion: the motor drives it
+            return t / (self.gear_ratio * self.efficiency)
+        return t * self.efficiency / self.gear_ratio   # the load back-drives the motor
+
+
+DEFAULT_MOTOR_PARAMS = MotorParams()
+
+
+class DcMotor:
+    """A brushed DC motor with gearbox and load.
+
+    ``DcMotor(kernel, name="motor1", params=None, current=0.0, speed=0.0, angle=0.0,
+    horizon=50e-6, max_horizon=5e-3, **overrides)`` where ``overrides`` are :class:`MotorParams`
+    names (``R, L, K, J, tau_c, b, tau_s, gear_ratio, efficiency, load_inertia, load_torque``).
+
+    Observers (evaluated at ``kernel.now``): ``current`` (A), ``speed`` (motor shaft rad/s),
+    ``angle`` (motor shaft rad), ``output_angle``/``output_speed`` (θ/N, ω/N), ``peak_current``,
+    ``stuck``, ``conducting``, ``mode``; ``state_at(tick)`` for a tick in the current or previous
+    segment.
+
+    Drivers and guard providers: a driver (one per motor) implements ``drive_state() ->
+    (V⁺, V⁻, R_br, has_diode)`` and calls :meth:`input_changed` when that may have changed; it is
+    attached with :meth:`attach_driver`. A guard provider implements ``plant_guards()`` returning
+    guard tuples ``(ci, cw, cθ, c0, strict, provider, tag)`` — fired when ``ci·i + cw·ω + cθ·θ + c0``
+    is < 0 (strict) or <= 0 — and ``on_guard(tag)``, called at the located tick with the motor
+    already advanced to it; it is registered with :meth:`add_guard_provider` and must call
+    :meth:`input_changed` whenever its guards change outside ``on_guard``.
+    """
+
+    def __init__(self, kernel, name: str = "motor1", params: MotorParams | dict | None = None, *,
+                 current: float = 0.0, speed: float = 0.0, angle: float = 0.0,
+                 horizon: float = 50e-6, max_horizon: float = 5e-3, **overrides):
+        self.kernel = kernel
+        self.name = name
+        if isinstance(params, dict):
+            params = MotorParams.from_mapping(params)
+        self.params = MotorParams.from_mapping(overrides, base=params)
+        self._fs = kernel.timebase.base_hz
+        self._inv_hz = 1.0 / self._fs
+        self._h0 = max(1, round(float(horizon) * self._fs))
+        self._hmax = max(self._h0, round(float(max_horizon) * self._fs))
+        self._h = self._h0
+        self._grow = False
+        self._driver = None
+        self._providers = []
+        self._busy = False
+        self._ev = None
+        self._pending = None
+        self._pending_time = None
+        self._t0 = kernel.now
+        self._x0 = (float(current), float(speed), float(angle))
+        self._traj = None
+        self._prev = None          # (t0, traj) of the previous segment, for state_at()
+        self._es = 0               # electrical sign domain: None (no diode), +1, −1, 0 (DCM)
+        self._s = 0                # mechanical: +1, −1, 0 (stuck)
+        self._peak = abs(self._x0[0])
+        self.segments = 0          # segments built (a cost counter)
+        self._set_params(self.params)
+        self._sync()
+
+    # ---- configuration ---------------------------------------------------------------------------
+    def _set_params(self, p: MotorParams):
+        self.params = p
+        self._J = p.J_eq
+        self._tlp = p.load_reflected(+1)
+        self._tln = p.load_reflected(-1)
+        self._eig_cache = {}
+        self._full_cache = {}
+
+    def set_params(self, **overrides) -> None:
+        """Change parameters at run time (advances to now first). Unknown names raise ConfigError."""
+        new = MotorParams.from_mapping(overrides, base=self.params)
+        self._change(lambda: self._set_params(new))
+
+    def apply_load_torque(self, tau_out: float) -> None:
+        """Set the output-shaft load torque (N·m, against positive rotation) from now on."""
+        self.set_params(load_torque=tau_out)
+
+    def set_state(self, current: float | None = None, speed: float | None = None,
+                  angle: float | None = None) -> None:
+        """Overwrite the state at now (test and scenario set-up)."""
+        def do():
+            i, w, th = self._x0
+            self._x0 = (i if current is None else float(current), w if speed is None else float(speed),
+                        th if angle is None else float(angle))
+            self._peak = max(self._peak, abs(self._x0[0]))
+        self._change(do)
+
+    def attach_driver(self, driver) -> None:
+        if self._driver is not None and self._driver is not driver:
+            raise ConfigError(f"{self.name}: already driven by {getattr(self._driver, 'name', self._driver)}")
+        self._change(lambda: setattr(self, "_driver", driver))
+
+    def add_guard_provider(self, provider) -> None:
+        self._change(lambda: self._providers.append(provider))
+
+    def _change(self, fn):
+        if self._busy:
+            fn()
+            return
+        self._busy = True
+        try:
+            self._advance()
+            fn()
+            self._grow = False
+            self._rebuild()
+        finally:
+            self._busy = False
+
+    # ---- observers -------------------------------------------------------------------------------
+    def _now_state(self):
+        n = self.kernel.now - self._t0
+        if n == 0 or self._traj is None:
+            return self._x0
+        return self._traj.eval(n * self._inv_hz) if n else self._x0
+
+    def state_at(self, tick: int):
+        """(i, ω, θ) at ``tick``, which must lie in the current or the previous segment (≤ now)."""
+        if tick > self.kernel.now:
+            raise ValueError(f"state_at({tick}) is in the future (now {self.kernel.now})")
+        if tick >= self._t0:
+            n = tick - self._t0
+            return self._x0 if (n == 0 or self._traj is None) else self._traj.eval(n * self._inv_hz)
+        if self._prev is not None and tick >= self._prev[0]:
+            t0, tr = self._prev
+            return tr.eval((tick - t0) * self._inv_hz)
+        raise ValueError(f"state_at({tick}) is before the previous segment")
+
+    @property
+    def current(self) -> float:
+        return self._now_state()[0]
+
+    @property
+    def speed(self) -> float:
+        return self._now_state()[1]
+
+    @property
+    def angle(self) -> float:
+        return self._now_state()[2]
+
+    @property
+    def output_angle(self) -> float:
+        return self._now_state()[2] / self.params.gear_ratio
+
+    @property
+    def output_speed(self) -> float:
+        return self._now_state()[1] / self.params.gear_ratio
+
+    @property
+    def peak_current(self) -> float:
+        """Largest |i| so far: at every segment boundary and at the current extremum located
+        inside each segment (real-eigenvalue case; complex case: boundaries only)."""
+        n = self.kernel.now - self._t0
+        if n and self._traj is not None:
+            return max(self._peak, self._segment_peak(self._traj, n * self._inv_hz))
+        return self._peak
+
+    @property
+    def stuck(self) -> bool:
+        return self._s == 0
+
+    @property
+    def conducting(self) -> bool:
+        return self._es != 0
+
+    @property
+    def mode(self) -> str:
+        e = {None: "on", 1: "i>0", -1: "i<0", 0: "dcm"}[self._es]
+        m = {1: "w>0", -1: "w<0", 0: "stuck"}[self._s]
+        return f"{e},{m}"
+
+    def _segment_peak(self, tr, t):
+        x = tr.eval(t)
+        p = abs(x[0])
+        te = tr.x1_extremum(t)
+        if te is not None:
+            p = max(p, abs(tr.eval(te)[0]))
+        return p
+
+    # ---- the segment engine ----------------------------------------------------------------------
+    def input_changed(self) -> None:
+        """A driver's output or a provider's guards changed at ``kernel.now``."""
+        if self._busy:
+            return  # the running advance/rebuild will pick the change up
+        self._grow = False
+        self._sync()
+
+    def _on_event(self):
+        self._ev = None
+        self._grow = self._pending is None
+        self._sync()
+
+    def _sync(self):
+        if self._busy:
+            return
+        self._busy = True
+        try:
+            self._advance()
+            self._rebuild()
+        finally:
+            self._busy = False
+
+    def _advance(self):
+        """Re-base the segment at now; run the guard handlers that are due at now."""
+        now = self.kernel.now
+        n = now - self._t0
+        if n and self._traj is not None:
+            t = n * self._inv_hz
+            tr = self._traj
+            self._peak = max(self._peak, self._segment_peak(tr, t))
+            self._x0 = tr.eval(t)
+            self._prev = (self._t0, tr)
+        self._t0 = now
+        if self._pending is not None and self._pending_time == now:
+            guards, self._pending = self._pending, None
+            if self._ev is not None:
+                self._ev.cancel()
+                self._ev = None
+            for g in guards:
+                g[5].on_guard(g[6])
+
+    def on_guard(self, tag):
+        i, w, th = self._x0
+        if tag == "w0":
+            self._x0 = (i, 0.0, th)
+        elif tag == "i0":
+            self._x0 = (0.0, w, th)
+        # 'brk+', 'brk-', 'dcm+', 'dcm-': the mode re-selection sees it
+
+    def _stick_guards(self):
+        p = self.params
+        return ((-p.K, 0.0, 0.0, p.tau_s + self._tlp, True, self, "brk+"),
+                (p.K, 0.0, 0.0, p.tau_s - self._tln, True, self, "brk-"))
+
+    def _dcm_guards(self, vp, vn):
+        K = self.params.K
+        out = []
+        if math.isfinite(vp):
+            out.append((0.0, K, 0.0, -vp, True, self, "dcm+"))
+        if math.isfinite(vn):
+            out.append((0.0, -K, 0.0, vn, True, self, "dcm-"))
+        return out
+
+    def _select(self, x, drive):
+        vp, vn, _, diode = drive
+        hval, fired = pwl.hval, pwl.fired
+        i, w, _ = x
+        if not diode:
+            es = None
+        elif i > 0.0:
+            es = 1
+        elif i < 0.0:
+            es = -1
+        else:
+            es = 0
+            for g in self._dcm_guards(vp, vn):
+                if fired(g, hval(g, x)):
+                    es = 1 if g[6] == "dcm+" else -1
+                    break
+        if w > 0.0:
+            s = 1
+        elif w < 0.0:
+            s = -1
+        else:
+            s = 0
+            for g in self._stick_guards():
+                if fired(g, hval(g, x)):
+                    s = 1 if g[6] == "brk+" else -1
+                    break
+        return es, s
+
+    def _build(self, x0, drive, es, s):
+        p = self.params
+        vp, vn, rbr, _ = drive
+        if es == 0:
+            if s == 0:
+                return pwl.static(x0)
+            T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
+            return pwl.first_order_x2(-p.b / self._J, -T / self._J, x0)
+        v0 = vn if es == -1 else vp
+        rt = p.R + rbr
+        if s == 0:
+            return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
+        T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
+        key = (rt, v0, T)
+        ent = self._full_cache.get(key)
+        if ent is None:
+            eig = self._eig_cache.get(rt)
+            A = (-rt / p.L, -p.K / p.L, p.K / self._J, -p.b / self._J)
+            if eig is None:
+                eig = self._eig_cache[rt] = pwl.eig2(*A)
+            ent = self._full_cache[key] = (eig, A, (v0 / p.L, -T / self._J))
+            if len(self._full_cache) > 256:
+                self._full_cache.clear()
+        eig, A, u = ent
+        return pwl.affine2(eig, A, u, x0)
+
+    def _rebuild(self):
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        self._pending = None
+        x0 = self._x0
+        drive = self._driver.drive_state() if self._driver is not None else OPEN_CIRCUIT
+        es, s = self._select(x0, drive)
+        self._es, self._s = es, s
+        tr = self._traj = self._build(x0, drive, es, s)
+        self.segments += 1
+        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
+        self._grow = False
+        if tr.kind == "static":
+            guards = []
+        else:
+            guards = []
+            if es is not None and es != 0:
+                guards.append((float(es), 0.0, 0.0, 0.0, False, self, "i0"))
+            if s != 0:
+                guards.append((0.0, float(s), 0.0, 0.0, False, self, "w0"))
+                if es == 0:
+                    guards.extend(self._dcm_guards(drive[0], drive[1]))
+            elif es != 0:
+                guards.extend(self._stick_guards())
+        for prov in self._providers:
+            guards.extend(prov.plant_guards())
+        if tr.kind == "static":
+            # nothing moves: a provider guard can only be fired now or never
+            return
+        if not guards:
+            return
+        self._screen(tr, x0, guards)
+
+    def _screen(self, tr, x0, guards):
+        inv = self._inv_hz
+        H = self._h
+        cache = {0: x0}
+        ev = tr.eval
+
+        def state(n):
+            x = cache.get(n)
+            if x is None:
+                x = cache[n] = ev(n * inv)
+            return x
+
+        xH = state(H)
+        m2 = tr.m2
+        best = None
+        firing = []
+        hval = pwl.hval
+        for g in guards:
+            nb = H if best is None else best
+            ha = hval(g, x0)
+            hb = hval(g, xH if nb == H else state(nb))
+            gm2 = abs(g[0]) * m2[0] + abs(g[1]) * m2[1] + abs(g[2]) * m2[2]
+            n = pwl.first_fire(lambda k, g=g: hval(g, state(k)), gm2, 0, nb, ha, hb, g[4], inv)
+            if n is None:
+                continue
+            if best is None or n < best:
+                best, firing = n, [g]
+            else:  # n == best
+                firing.append(g)
+        if best is None:
+            self._ev = self.kernel.at(self._t0 + H, self._on_event, prio=PRIO_PLANT)
+        else:
+            self._pending, self._pending_time = firing, self._t0 + best
+            self._ev = self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_PLANT)
+
+    def __repr__(self):
+        i, w, th = self._now_state()
+        return f"DcMotor({self.name}: i={i:.4g} A, ω={w:.4g} rad/s, θ={th:.4g} rad, {self.mode})"

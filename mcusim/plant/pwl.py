@@ -1,0 +1,223 @@
+"""Exact piecewise-linear plant segments and rigorous guard location on integer ticks.
+
+Between two events a plant's inputs are constant, so its linear part is an affine ODE
+``ẋ = A·x + u`` with constant ``A`` and ``u``. This module gives the closed-form solution of the
+2-state case used by the DC motor (x = (i, ω), plus θ = ∫ω) and of its reduced forms:
+
+- :func:`affine2`: full 2×2 system, eigen-decomposed (complex arithmetic when the eigenvalues
+  are a conjugate pair);
+- :func:`first_order_x1`: only x1 moves (motor stuck: ω ≡ 0, θ constant);
+- :func:`first_order_x2`: only x2 and θ move (discontinuous conduction: i ≡ 0), including the
+  singular case λ = 0 (no viscous friction: ω linear, θ quadratic);
+- :func:`static`: nothing moves.
+
+Every component of every trajectory has the form ``f(t) = a + b·t + c·t² + Σ d_k·e^{λ_k t}``
+with ``Re λ_k ≤ 0`` (t in seconds from the segment start), so on ``[0, ∞)`` its second
+derivative is bounded by ``M2 = 2|c| + Σ |d_k λ_k²|`` (:attr:`Traj.m2`). A *guard* is a linear
+function of the state, ``h(x) = ci·i + cw·ω + cθ·θ + c0`` (see :func:`hval`); its ``M2`` is
+bounded by ``|ci|·M2_i + |cw|·M2_ω + |cθ|·M2_θ``. :func:`first_fire` uses that bound: if ``h``
+is positive at both ends of an interval of length ``Δ`` and exceeds ``M2·Δ²/8`` there (the
+linear-interpolation error bound), ``h`` has no root inside; otherwise the interval is halved,
+down to single ticks. The answer is the *first* integer tick at which the guard has fired, with
+no tolerance other than the float evaluation of the closed form itself.
+
+Cost (pure Python, no numpy): building a segment is a few dozen float operations (the eigen
+decomposition is cached by the caller per mode key); one evaluation is two ``math.exp`` (or one
+``cmath.exp``) plus ~15 multiply-adds; screening a segment whose guards are far from firing
+costs one evaluation at the horizon and ~6 flops per guard. A guard that is close to firing
+costs ~2·log2(horizon ticks) extra evaluations.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+__all__ = ["Traj", "eig2", "affine2", "first_order_x1", "first_order_x2", "static", "hval", "first_fire"]
+
+
+class Traj:
+    """Closed-form trajectory of (x1, x2, x3 = x3(0) + ∫x2) from a segment start.
+
+    Component j is ``a[j] + b[j]·t + c[j]·t² + Σ_k d[j][k]·e^{lam[k]·t}``; in the complex case only
+    one eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·e^{lam[0]·t})``.
+    """
+
+    __slots__ = ("x0", "a", "b", "c", "lam1", "lam2", "d1", "d2", "cplx", "m2", "kind")
+
+    def eval(self, t: float):
+        """State (x1, x2, x3) at ``t`` seconds after the segment start (``t == 0`` gives x0 exactly)."""
+        if t == 0:
+            return self.x0
+        a, b, c = self.a, self.b, self.c
+        if self.cplx:
+            e = cmath.exp(self.lam1 * t)
+            d = self.d1
+            return (a[0] + (b[0] + c[0] * t) * t + 2.0 * (d[0] * e).real,
+                    a[1] + (b[1] + c[1] * t) * t + 2.0 * (d[1] * e).real,
+                    a[2] + (b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real)
+        e1 = math.exp(self.lam1 * t)
+        e2 = math.exp(self.lam2 * t)
+        d1, d2 = self.d1, self.d2
+        return (a[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
+                a[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
+                a[2] + (b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2)
+
+    def x1_extremum(self, t_end: float):
+        """Time in (0, t_end) where x1 has a stationary point, for the real two-exponential case
+        (x1 has at most one there); ``None`` otherwise. Used to catch current peaks inside a segment."""
+        if self.cplx or self.kind != "full":
+            return None
+        p = self.d1[0] * self.lam1
+        q = self.d2[0] * self.lam2
+        if p == 0.0 or q == 0.0 or self.lam1 == self.lam2:
+            return None
+        r = -q / p  # p e^{l1 t} + q e^{l2 t} = 0  ->  e^{(l1-l2) t} = -q/p
+        if r <= 0.0:
+            return None
+        t = math.log(r) / (self.lam1 - self.lam2)
+        return t if 0.0 < t < t_end else None
+
+
+def _make(kind, x0, a, b, c, lam1, lam2, d1, d2, cplx):
+    tr = Traj()
+    tr.kind, tr.x0, tr.a, tr.b, tr.c = kind, x0, a, b, c
+    tr.lam1, tr.lam2, tr.d1, tr.d2, tr.cplx = lam1, lam2, d1, d2, cplx
+    if cplx:
+        l2 = abs(lam1) ** 2
+        tr.m2 = tuple(2.0 * abs(c[j]) + 2.0 * abs(d1[j]) * l2 for j in range(3))
+    else:
+        s1, s2 = lam1 * lam1, lam2 * lam2
+        tr.m2 = tuple(2.0 * abs(c[j]) + abs(d1[j]) * s1 + abs(d2[j]) * s2 for j in range(3))
+    return tr
+
+
+_Z3 = (0.0, 0.0, 0.0)
+
+
+def eig2(a11: float, a12: float, a21: float, a22: float):
+    """Eigen-decomposition of a real 2×2 matrix with eigenvalues of negative real part.
+
+    Returns ``(lam1, lam2, V, Vinv, cplx)``: eigenvalues, eigenvector matrix (rows) and its inverse
+    as nested tuples. Cache the result per matrix: this is the expensive part of a mode change.
+    A (numerically) repeated eigenvalue is split by a relative 1e-7 so the diagonal form stays
+    usable (the trajectory error this causes is of that relative order, only at exact critical
+    damping).
+    """
+    tr = a11 + a22
+    det = a11 * a22 - a12 * a21
+    disc = tr * tr - 4.0 * det
+    scale = tr * tr if tr != 0.0 else abs(det) + 1.0
+    if abs(disc) <= 1e-14 * scale:
+        disc = 1e-14 * scale
+    if disc > 0.0:
+        s = math.sqrt(disc)
+        l1 = 0.5 * (tr - s) if tr <= 0.0 else 0.5 * (tr + s)
+        l2 = det / l1 if l1 != 0.0 else 0.5 * (tr + s)
+        cplx = False
+    else:
+        s = math.sqrt(-disc)
+        l1 = complex(0.5 * tr, 0.5 * s)
+        l2 = l1.conjugate()
+        cplx = True
+
+    def vec(lam):
+        # (A - lam I) v = 0: v = (a12, lam - a11) or (lam - a22, a21); take the better conditioned
+        v1 = (a12, lam - a11)
+        v2 = (lam - a22, a21)
+        return v1 if abs(v1[0]) + abs(v1[1]) >= abs(v2[0]) + abs(v2[1]) else v2
+
+    u1, u2 = vec(l1), vec(l2)
+    V = ((u1[0], u2[0]), (u1[1], u2[1]))  # columns are eigenvectors
+    dv = V[0][0] * V[1][1] - V[0][1] * V[1][0]
+    Vinv = ((V[1][1] / dv, -V[0][1] / dv), (-V[1][0] / dv, V[0][0] / dv))
+    return l1, l2, V, Vinv, cplx
+
+
+def affine2(eig, A, u, x0):
+    """Segment of ``ẋ = A x + u`` (x = (x1, x2)) plus ``x3 = x3(0) + ∫x2``, from ``x0``.
+
+    ``eig`` is :func:`eig2` of ``A``; ``A = (a11, a12, a21, a22)``; ``u = (u1, u2)``.
+    """
+    a11, a12, a21, a22 = A
+    u1, u2 = u
+    det = a11 * a22 - a12 * a21
+    # steady state x_ss = -A^{-1} u
+    s1 = -(a22 * u1 - a12 * u2) / det
+    s2 = -(-a21 * u1 + a11 * u2) / det
+    l1, l2, V, Vi, cplx = eig
+    y1, y2 = x0[0] - s1, x0[1] - s2
+    al1 = Vi[0][0] * y1 + Vi[0][1] * y2
+    if cplx:
+        d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
+        a = (s1, s2, x0[2] - 2.0 * d1[2].real)
+        return _make("full", x0, a, (0.0, 0.0, s2), _Z3, l1, l2, d1, (0.0, 0.0, 0.0), True)
+    al2 = Vi[1][0] * y1 + Vi[1][1] * y2
+    d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
+    d2 = (V[0][1] * al2, V[1][1] * al2, V[1][1] * al2 / l2)
+    a = (s1, s2, x0[2] - d1[2] - d2[2])
+    return _make("full", x0, a, (0.0, 0.0, s2), _Z3, l1, l2, d1, d2, False)
+
+
+def first_order_x1(lam: float, x1_ss: float, x0):
+    """Only x1 moves: ``x1 = x1_ss + (x1(0) - x1_ss)·e^{lam t}`` (lam < 0); x2 and x3 are held
+    (x3 = x3(0) + x2(0)·t, which is constant when x2 = 0)."""
+    d = x0[0] - x1_ss
+    return _make("x1", x0, (x1_ss, x0[1], x0[2]), (0.0, 0.0, x0[1]), _Z3, lam, 0.0,
+                 (d, 0.0, 0.0), (0.0, 0.0, 0.0), False)
+
+
+def first_order_x2(lam: float, k: float, x0):
+    """Only x2 (and x3 = ∫x2) move, x1 held: ``ẋ2 = lam·x2 + k``.
+
+    lam < 0: x2 = s + (x2(0) - s)·e^{lam t} with s = -k/lam; lam == 0: x2 = x2(0) + k·t.
+    """
+    if lam == 0.0:
+        return _make("x2", x0, (x0[0], x0[1], x0[2]), (0.0, k, x0[1]), (0.0, 0.0, 0.5 * k),
+                     0.0, 0.0, _Z3, _Z3, False)
+    s = -k / lam
+    d = x0[1] - s
+    return _make("x2", x0, (x0[0], s, x0[2] - d / lam), (0.0, 0.0, s), _Z3, lam, 0.0,
+                 (0.0, d, d / lam), _Z3, False)
+
+
+def static(x0):
+    return _make("static", x0, tuple(x0), _Z3, _Z3, 0.0, 0.0, _Z3, _Z3, False)
+
+
+def hval(g, x) -> float:
+    """Guard value ``ci·x1 + cw·x2 + cθ·x3 + c0`` for guard tuple ``g = (ci, cw, cθ, c0, strict, ...)``.
+
+    Every decision made on a guard (locating it and re-testing it at a mode switch) goes through
+    this one expression, so the two never disagree by a rounding error.
+    """
+    return g[0] * x[0] + g[1] * x[1] + g[2] * x[2] + g[3]
+
+
+def fired(g, h: float) -> bool:
+    """A guard fires when its value is < 0 (``strict``) or <= 0."""
+    return h < 0.0 if g[4] else h <= 0.0
+
+
+def guard_m2(g, m2) -> float:
+    return abs(g[0]) * m2[0] + abs(g[1]) * m2[1] + abs(g[2]) * m2[2]
+
+
+def first_fire(h_at, m2: float, na: int, nb: int, ha: float, hb: float, strict: bool, inv_hz: float):
+    """First integer tick n in (na, nb] where the guard has fired, or ``None``.
+
+    ``h_at(n)`` evaluates the guard at tick offset n; ``ha``/``hb`` are its values at na/nb; the
+    guard is taken as not fired at na. ``m2`` bounds |h''| (per s²); ``inv_hz`` is seconds per tick.
+    """
+    if nb - na == 1:
+        return nb if (hb < 0.0 if strict else hb <= 0.0) else None
+    dt = (nb - na) * inv_hz
+    e = 0.125 * m2 * dt * dt
+    if ha > e and hb > e:
+        return None
+    nm = (na + nb) >> 1
+    hm = h_at(nm)
+    r = first_fire(h_at, m2, na, nm, ha, hm, strict, inv_hz)
+    if r is not None:
+        return r
+    return first_fire(h_at, m2, nm, nb, hm, hb, strict, inv_hz)

@@ -1,0 +1,122 @@
+"""The Python API: ``mcusim.load(board)`` returns a :class:`Simulation`."""
+
+from __future__ import annotations
+
+import time as _wall
+
+from .board import build, parse_value, read_profile, split_overrides
+from .errors import ConfigError, McusimError
+
+
+class Simulation:
+    def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None):
+        overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
+        profile, where = read_profile(board)
+        part_params, fw_params, topics = split_overrides(profile, overrides)
+        ns = build(profile, where, part_params, firmware, fw_params)
+        self.board_name = ns["board"]["name"]
+        self.timebase, self.kernel, self.mcu = ns["timebase"], ns["kernel"], ns["mcu"]
+        self.parts, self.firmware = ns["parts"], ns["firmware"]
+        self.profile = profile
+        self.wall_s = 0.0
+        self._traces = []
+        for name, value in topics:
+            self.publish(name, value)
+
+    # --- time ---------------------------------------------------------------------------------
+    @property
+    def now(self) -> int:
+        """Simulated time in base ticks."""
+        return self.kernel.now
+
+    @property
+    def time_s(self) -> float:
+        return self.kernel.now / self.timebase.base_hz
+
+    @property
+    def cycles(self) -> int:
+        """Core clock cycles since reset."""
+        return self.kernel.now // self.mcu.core_clock.period
+
+    def run(self, *, cycles: int | None = None, seconds=None, until=None) -> "Simulation":
+        """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), or to absolute ``until`` seconds."""
+        given = [x is not None for x in (cycles, seconds, until)]
+        if sum(given) != 1:
+            raise McusimError("run() takes exactly one of cycles=, seconds=, until=")
+        if cycles is not None:
+            end = self.kernel.now + self.mcu.core_clock.cycles(int(cycles))
+        elif seconds is not None:
+            end = self.kernel.now + self.timebase.ticks(seconds, rounding=True)
+        else:
+            end = self.timebase.ticks(until, rounding=True)
+        t0 = _wall.perf_counter()
+        try:
+            self.kernel.run_until(end)
+        finally:
+            self.wall_s += _wall.perf_counter() - t0
+        for tr in self._traces:
+            tr.flush(self.kernel.now)
+        return self
+
+    # --- pins, topics -------------------------------------------------------------------------------
+    def pin(self, name: str):
+        return self.mcu.pin(name)
+
+    def _fw(self):
+        if self.firmware is None:
+            raise McusimError("this simulation runs without firmware (load(..., firmware=True) for topics)")
+        return self.firmware
+
+    def publish(self, topic: str, value) -> None:
+        self._fw().publish(topic, value)
+
+    def topic(self, name: str):
+        return self._fw().topic(name)
+
+    def part(self, name: str):
+        try:
+            return self.parts[name]
+        except KeyError:
+            raise ConfigError(f"no part {name!r}; parts: {', '.join(self.parts)}") from None
+
+    @property
+    def motors(self) -> dict:
+        return {n: p for n, p in self.parts.items() if type(p).__name__ == "DcMotor"}
+
+    # --- traces -------------------------------------------------------------------------------------
+    def trace_vcd(self, path, sample="50us"):
+        from .trace import VcdTrace
+        tr = VcdTrace(self, path, sample=sample)
+        self._traces.append(tr)
+        return tr
+
+    def close(self) -> None:
+        for tr in self._traces:
+            tr.close(self.kernel.now)
+        self._traces.clear()
+
+    # --- summary ------------------------------------------------------------------------------------
+    def summary(self) -> dict:
+        sim_s = self.time_s
+        motors = {}
+        for i, (name, m) in enumerate(sorted(self.motors.items()), start=1):
+            entry = {"angle_rad": m.output_angle, "peak_current_a": m.peak_current}
+            if self.firmware is not None and hasattr(self.firmware, "set_point"):
+                entry["setpoint_rad"] = self.firmware.set_point(i)
+            motors[name] = entry
+        return {
+            "board": self.board_name,
+            "simulated_s": sim_s,
+            "wall_s": self.wall_s,
+            "realtime_factor": sim_s / self.wall_s if self.wall_s > 0 else None,
+            "events": self.kernel.events,
+            "motors": motors,
+        }
+
+
+def load(board: str, firmware: bool = True, overrides: dict | None = None, **kw) -> Simulation:
+    """Build a simulation of a board profile (a name from ``mcusim boards`` or a .toml path).
+
+    ``overrides`` are ``--set`` pairs: ``{"motor1.load_inertia": 2e-5, "/motor1/set_pos": 1.57}``.
+    """
+    return Simulation(board, firmware=firmware, overrides=overrides, **kw)

@@ -1,0 +1,97 @@
+"""STM32F7 RCC, as far as the timers need it (RM0385 §5; bit positions from stm32f746xx.h).
+
+Modelled: the bus prescalers in CFGR (HPRE, PPRE1, PPRE2), TIMPRE in DCKCFGR1 and the clock
+enable registers (stored; they do not gate access, see below). The PLL is not modelled: SYSCLK is
+the board's ``sysclk`` and the register reset values are the state *after* the board's
+SystemClock_Config (216 MHz from the PLL, AHB /1, APB1 /4, APB2 /2), as if the startup code ran.
+
+Timer kernel clocks (HAL ``stm32f7xx_hal_rcc_ex.h``, TIMPRE description; sheet §2.2):
+
+* TIMPRE = 0: TIMxCLK = PCLKx if the APBx prescaler is 1, else 2 × PCLKx;
+* TIMPRE = 1: TIMxCLK = HCLK if the APBx prescaler is 1, 2 or 4, else 4 × PCLKx.
+
+So TIM1/TIM8 (APB2) count at 216 MHz and TIM2–TIM5 (APB1) at 108 MHz unless TIMPRE is set.
+Peripherals register for a clock by name (``APB1_TIM``, ``APB2_TIM``); when firmware changes the
+prescalers, each user's ``set_kernel_clock`` is called at that instant.
+
+Not modelled: clock gating by the enable bits (a timer whose clock is off still responds), the
+PLL/oscillator registers (not mapped: touching them is a bus fault).
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+from mcusim.errors import UnsupportedConfiguration
+from mcusim.registers import Field, Peripheral, Register
+
+_AHB_DIV = {0b1000: 2, 0b1001: 4, 0b1010: 8, 0b1011: 16, 0b1100: 64, 0b1101: 128, 0b1110: 256, 0b1111: 512}
+_APB_DIV = {0b100: 2, 0b101: 4, 0b110: 8, 0b111: 16}
+
+
+def _enables(name, offset, bits):
+    return Register(name, offset, fields=tuple(Field(b, i) for i, b in bits.items()))
+
+
+class Rcc(Peripheral):
+    SIZE = 0x400
+    REGISTERS = (
+        Register("CFGR", 0x08, reset=(0b100 << 13) | (0b101 << 10) | (0b10 << 2) | 0b10,
+                 on_write="_write_cfgr", fields=(
+                     Field("SW", 0, 2, modelled=False), Field("SWS", 2, 2, access="r"),
+                     Field("HPRE", 4, 4), Field("PPRE1", 10, 3), Field("PPRE2", 13, 3),
+                     Field("RTCPRE", 16, 5, modelled=False), Field("MCO1", 21, 2, modelled=False),
+                     Field("I2SSCR", 23, modelled=False), Field("MCO1PRE", 24, 3, modelled=False),
+                     Field("MCO2PRE", 27, 3, modelled=False), Field("MCO2", 30, 2, modelled=False))),
+        _enables("AHB1ENR", 0x30, {0: "GPIOAEN", 1: "GPIOBEN", 2: "GPIOCEN", 3: "GPIODEN", 4: "GPIOEEN",
+                                   5: "GPIOFEN", 6: "GPIOGEN", 7: "GPIOHEN", 8: "GPIOIEN", 9: "GPIOJEN",
+                                   10: "GPIOKEN"}),
+        _enables("APB1ENR", 0x40, {0: "TIM2EN", 1: "TIM3EN", 2: "TIM4EN", 3: "TIM5EN"}),
+        _enables("APB2ENR", 0x44, {0: "TIM1EN", 1: "TIM8EN"}),
+        Register("DCKCFGR1", 0x8C, on_write="_write_dckcfgr1", fields=(Field("TIMPRE", 24),)),
+    )
+
+    def __init__(self, name, mcu, sysclk_hz):
+        super().__init__(name)
+        self.mcu = mcu
+        self.sysclk_hz = Fraction(sysclk_hz)
+        self._publish()
+
+    # --- clock tree ----------------------------------------------------------------------
+    def frequencies(self) -> dict[str, Fraction]:
+        hpre, ppre1, ppre2 = (self.field("CFGR", f) for f in ("HPRE", "PPRE1", "PPRE2"))
+        hclk = self.sysclk_hz / _AHB_DIV.get(hpre, 1)
+        out = {"SYSCLK": self.sysclk_hz, "HCLK": hclk}
+        timpre = self.field("DCKCFGR1", "TIMPRE")
+        for bus, ppre in (("APB1", ppre1), ("APB2", ppre2)):
+            div = _APB_DIV.get(ppre, 1)
+            pclk = hclk / div
+            out[bus] = pclk
+            if not timpre:
+                out[f"{bus}_TIM"] = pclk if div == 1 else 2 * pclk
+            else:
+                out[f"{bus}_TIM"] = hclk if div in (1, 2, 4) else 4 * pclk
+        return out
+
+    def _publish(self):
+        """Make the clocks available to the MCU; tell users of a clock that changed."""
+        tb = self.mcu.kernel.timebase
+        for name, hz in self.frequencies().items():
+            old = self.mcu.clocks.get(name)
+            if old is not None and old.hz == hz:
+                continue
+            try:
+                clock = tb.clock(name, hz)
+            except Exception as exc:  # the time base must contain every clock
+                raise UnsupportedConfiguration(self.name, "CFGR", None, self.value["CFGR"],
+                                               f"gives {name} = {hz} Hz, not in the time base: {exc}") from None
+            self.mcu.clocks[name] = clock
+            if old is not None:
+                for user in self.mcu.clock_users.get(name, ()):
+                    user.set_kernel_clock(clock)
+
+    def _write_cfgr(self, old, new):
+        self._publish()
+
+    def _write_dckcfgr1(self, old, new):
+        self._publish()

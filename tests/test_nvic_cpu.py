@@ -1,0 +1,149 @@
+"""Cortex-M NVIC and the firmware runtime: entry latency, priorities, preemption, cycle costs."""
+
+import pytest
+
+from mcusim.errors import McusimError
+from mcusim.firmware import Cpu, Rtos
+from mcusim.irq import SYSTICK, Nvic, Scb
+from mcusim.kernel import Kernel
+from mcusim.mcu import Mcu
+from mcusim.registers import Bus
+from mcusim.time import TimeBase
+from periph.cortexm.systick import SysTick
+
+NVIC = 0xE000E100
+
+
+@pytest.fixture
+def m():
+    tb = TimeBase([216_000_000])
+    k = Kernel(tb)
+    bus = Bus()
+    core = tb.clock("core", 216_000_000)
+    mcu = Mcu("t", k, bus, core)
+    mcu.nvic = Nvic()
+    bus.attach(NVIC, mcu.nvic)
+    bus.attach(0xE000ED00, Scb(mcu.nvic))
+    bus.attach(0xE000E010, SysTick("SysTick", mcu, core, tb.clock("ref", 27_000_000)))
+    mcu.cpu = Cpu(k, core, mcu.nvic)
+    mcu.rtos = Rtos(mcu.cpu)
+    return mcu
+
+
+def enable(m, n, prio):
+    m.write32(NVIC + 4 * (n >> 5), 1 << (n & 31))          # ISER
+    m.write8(NVIC + 0x300 + n, prio << 4)                   # IPR byte, 4 implemented bits
+
+
+def test_handler_runs_12_cycles_after_the_line_rises(m):
+    seen = []
+
+    def handler():  # clears its source on the second entry
+        seen.append(m.kernel.now)
+        if len(seen) == 2:
+            m.nvic.set_line(28, False)
+    m.cpu.vector(28, handler, cost=50)
+    enable(m, 28, 5)
+    m.kernel.at(1000, m.nvic.set_line, 28, True)
+    m.kernel.run_until(10_000)
+    # 216 MHz core: one cycle is one base tick. The line is still high when the first handler
+    # returns, so the interrupt is pending again (level-sensitive) and is re-entered at once.
+    assert seen == [1000 + 12, 1000 + 12 + 50 + 12]
+    assert not m.read32(NVIC + 0x100) & (1 << 28)
+
+
+def test_disabled_interrupt_stays_pending(m):
+    m.cpu.vector(3, lambda: None)
+    m.nvic.set_line(3, True)
+    m.kernel.run_until(1000)
+    assert m.read32(NVIC + 0x100) == 1 << 3 and m.cpu.isr_count == {}
+
+
+def test_more_urgent_interrupt_preempts_and_less_urgent_waits(m):
+    log = []
+    m.cpu.vector(10, lambda: log.append(("low", m.kernel.now)), cost=100)
+    m.cpu.vector(11, lambda: log.append(("high", m.kernel.now)), cost=20)
+    enable(m, 10, 8)
+    enable(m, 11, 2)
+
+    def raise_(n):
+        m.nvic.set_line(n, True)
+        m.nvic.set_line(n, False)
+    m.kernel.at(0, raise_, 10)
+    m.kernel.at(30, raise_, 11)   # during the low handler's body: preempts
+    m.kernel.run_until(1000)
+    assert log == [("low", 12), ("high", 42)]
+    assert m.cpu.isr_count == {10: 1, 11: 1}
+
+
+def test_equal_priority_does_not_preempt_and_tail_chains(m):
+    log = []
+    m.cpu.vector(10, lambda: log.append(("a", m.kernel.now)), cost=100)
+    m.cpu.vector(11, lambda: log.append(("b", m.kernel.now)), cost=10)
+    enable(m, 10, 4)
+    enable(m, 11, 4)
+    for t, n in ((0, 10), (20, 11)):
+        m.kernel.at(t, m.nvic.set_pending, n)
+    m.kernel.run_until(1000)
+    assert log == [("a", 12), ("b", 12 + 100 + 12)]
+
+
+def test_task_cycles_are_stretched_by_interrupts(m):
+    done = []
+
+    async def task():
+        await m.cpu.cycles(1000)
+        done.append(m.kernel.now)
+    m.rtos.create_task("t", task(), 1)
+    m.cpu.vector(5, lambda: None, cost=88)
+    enable(m, 5, 0)
+    m.kernel.at(500, m.nvic.set_pending, 5)
+    m.kernel.run_until(10_000)
+    assert done == [1000 + 12 + 88]
+
+
+def test_rtos_delay_until_wakes_on_the_systick_and_higher_priority_preempts(m):
+    from firmware.stm32hal.cortex import HAL_SYSTICK_Config
+    from firmware.stm32hal.regs import Stm32f7
+    log = []
+
+    async def slow():
+        while True:
+            log.append(("slow", m.rtos.tick_count, m.kernel.now))
+            await m.cpu.cycles(300_000)  # longer than a tick
+
+    async def fast():
+        wake = 0
+        while True:
+            log.append(("fast", m.rtos.tick_count, m.kernel.now))
+            await m.cpu.cycles(100)
+            wake += 1
+            await m.rtos.delay_until(wake)
+    m.cpu.vector(SYSTICK, m.rtos.systick_handler, cost=40)
+    m.rtos.create_task("slow", slow(), 1)
+    m.rtos.create_task("fast", fast(), 3)
+    HAL_SYSTICK_Config(Stm32f7(m.bus), 216_000)
+    m.kernel.run_until(3 * 216_000 + 1000)
+    fast = [e for e in log if e[0] == "fast"]
+    # the fast task runs at every tick, 12 + 40 cycles after the SysTick wrap
+    assert [t for _, _, t in fast] == [0, 216_000 + 52, 2 * 216_000 + 52, 3 * 216_000 + 52]
+    slow = [t for name, _, t in log if name == "slow"]
+    # the slow task starts when fast blocks (100 cycles), and its 300k cycles are stretched by
+    # one tick interrupt (12 + 40) and one pass of the fast task (100)
+    assert slow[:2] == [100, 100 + 300_000 + 152]
+
+
+def test_pending_interrupt_without_handler_is_a_clear_error(m):
+    enable(m, 7, 1)
+    with pytest.raises(McusimError, match="no handler"):
+        m.nvic.set_pending(7)
+
+
+def test_systick_period_is_load_plus_one(m):
+    hits = []
+    m.cpu.vector(SYSTICK, lambda: hits.append(m.kernel.now), cost=0)
+    m.write32(0xE000E014, 99)   # LOAD
+    m.write32(0xE000E018, 0)    # VAL
+    m.write32(0xE000E010, 0b111)
+    m.kernel.run_until(1000)
+    assert hits == [100 + 12 + 100 * k for k in range(9)]
