@@ -12,6 +12,7 @@ Between two events a plant's inputs are constant, so its linear part is an affin
 - :func:`static`: nothing moves.
 
 Every component of every trajectory has the form ``f(t) = a + b·t + c·t² + Σ d_k·e^{λ_k t}``
+(evaluated as ``x0 + b·t + c·t² + Σ d_k·expm1(λ_k t)``)
 with ``Re λ_k ≤ 0`` (t in seconds from the segment start), so on ``[0, ∞)`` its second
 derivative is bounded by ``M2 = 2|c| + Σ |d_k λ_k²|`` (:attr:`Traj.m2`). A *guard* is a linear
 function of the state, ``h(x) = ci·i + cw·ω + cθ·θ + c0`` (see :func:`hval`); its ``M2`` is
@@ -22,15 +23,14 @@ down to single ticks. The answer is the *first* integer tick at which the guard 
 no tolerance other than the float evaluation of the closed form itself.
 
 Cost (pure Python, no numpy): building a segment is a few dozen float operations (the eigen
-decomposition is cached by the caller per mode key); one evaluation is two ``math.exp`` (or one
-``cmath.exp``) plus ~15 multiply-adds; screening a segment whose guards are far from firing
+decomposition is cached by the caller per mode key); one evaluation is two ``math.expm1`` (or one
+complex expm1 built from exp/sin/cos) plus ~15 multiply-adds; screening a segment whose guards are far from firing
 costs one evaluation at the horizon and ~6 flops per guard. A guard that is close to firing
 costs ~2·log2(horizon ticks) extra evaluations.
 """
 
 from __future__ import annotations
 
-import cmath
 import math
 
 __all__ = ["Traj", "eig2", "affine2", "first_order_x1", "first_order_x2", "static", "hval", "first_fire"]
@@ -39,29 +39,34 @@ __all__ = ["Traj", "eig2", "affine2", "first_order_x1", "first_order_x2", "stati
 class Traj:
     """Closed-form trajectory of (x1, x2, x3 = x3(0) + ∫x2) from a segment start.
 
-    Component j is ``a[j] + b[j]·t + c[j]·t² + Σ_k d[j][k]·e^{lam[k]·t}``; in the complex case only
-    one eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·e^{lam[0]·t})``.
+    Component j is ``x0[j] + b[j]·t + c[j]·t² + Σ_k d[j][k]·(e^{lam[k]·t} − 1)`` (the same function
+    as ``a + b·t + c·t² + Σ d·e^{λt}`` with ``a = x0 − Σ d``, written with ``expm1`` so that a far
+    steady state or a slow eigenvalue costs no cancellation). In the complex case only one
+    eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·(e^{lam[0]·t} − 1))``.
     """
 
-    __slots__ = ("x0", "a", "b", "c", "lam1", "lam2", "d1", "d2", "cplx", "m2", "kind")
+    __slots__ = ("x0", "b", "c", "lam1", "lam2", "d1", "d2", "cplx", "m2", "kind")
 
     def eval(self, t: float):
         """State (x1, x2, x3) at ``t`` seconds after the segment start (``t == 0`` gives x0 exactly)."""
         if t == 0:
             return self.x0
-        a, b, c = self.a, self.b, self.c
+        x0, b, c = self.x0, self.b, self.c
         if self.cplx:
-            e = cmath.exp(self.lam1 * t)
+            lam = self.lam1
+            re, im = lam.real * t, lam.imag * t
+            sh = math.sin(0.5 * im)
+            e = complex(math.expm1(re) * math.cos(im) - 2.0 * sh * sh, math.exp(re) * math.sin(im))
             d = self.d1
-            return (a[0] + (b[0] + c[0] * t) * t + 2.0 * (d[0] * e).real,
-                    a[1] + (b[1] + c[1] * t) * t + 2.0 * (d[1] * e).real,
-                    a[2] + (b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real)
-        e1 = math.exp(self.lam1 * t)
-        e2 = math.exp(self.lam2 * t)
+            return (x0[0] + (b[0] + c[0] * t) * t + 2.0 * (d[0] * e).real,
+                    x0[1] + (b[1] + c[1] * t) * t + 2.0 * (d[1] * e).real,
+                    x0[2] + (b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real)
+        e1 = math.expm1(self.lam1 * t)
+        e2 = math.expm1(self.lam2 * t)
         d1, d2 = self.d1, self.d2
-        return (a[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
-                a[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
-                a[2] + (b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2)
+        return (x0[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
+                x0[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
+                x0[2] + (b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2)
 
     def x1_extremum(self, t_end: float):
         """Time in (0, t_end) where x1 has a stationary point, for the real two-exponential case
@@ -79,9 +84,9 @@ class Traj:
         return t if 0.0 < t < t_end else None
 
 
-def _make(kind, x0, a, b, c, lam1, lam2, d1, d2, cplx):
+def _make(kind, x0, b, c, lam1, lam2, d1, d2, cplx):
     tr = Traj()
-    tr.kind, tr.x0, tr.a, tr.b, tr.c = kind, x0, a, b, c
+    tr.kind, tr.x0, tr.b, tr.c = kind, tuple(x0), b, c
     tr.lam1, tr.lam2, tr.d1, tr.d2, tr.cplx = lam1, lam2, d1, d2, cplx
     if cplx:
         l2 = abs(lam1) ** 2
@@ -150,21 +155,17 @@ def affine2(eig, A, u, x0):
     al1 = Vi[0][0] * y1 + Vi[0][1] * y2
     if cplx:
         d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
-        a = (s1, s2, x0[2] - 2.0 * d1[2].real)
-        return _make("full", x0, a, (0.0, 0.0, s2), _Z3, l1, l2, d1, (0.0, 0.0, 0.0), True)
+        return _make("full", x0, (0.0, 0.0, s2), _Z3, l1, l2, d1, _Z3, True)
     al2 = Vi[1][0] * y1 + Vi[1][1] * y2
     d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
     d2 = (V[0][1] * al2, V[1][1] * al2, V[1][1] * al2 / l2)
-    a = (s1, s2, x0[2] - d1[2] - d2[2])
-    return _make("full", x0, a, (0.0, 0.0, s2), _Z3, l1, l2, d1, d2, False)
+    return _make("full", x0, (0.0, 0.0, s2), _Z3, l1, l2, d1, d2, False)
 
 
 def first_order_x1(lam: float, x1_ss: float, x0):
-    """Only x1 moves: ``x1 = x1_ss + (x1(0) - x1_ss)·e^{lam t}`` (lam < 0); x2 and x3 are held
-    (x3 = x3(0) + x2(0)·t, which is constant when x2 = 0)."""
-    d = x0[0] - x1_ss
-    return _make("x1", x0, (x1_ss, x0[1], x0[2]), (0.0, 0.0, x0[1]), _Z3, lam, 0.0,
-                 (d, 0.0, 0.0), (0.0, 0.0, 0.0), False)
+    """Only x1 moves: ``x1 = x1_ss + (x1(0) - x1_ss)·e^{lam t}`` (lam < 0); x2 is held and
+    x3 = x3(0) + x2(0)·t (constant when x2 = 0)."""
+    return _make("x1", x0, (0.0, 0.0, x0[1]), _Z3, lam, 0.0, (x0[0] - x1_ss, 0.0, 0.0), _Z3, False)
 
 
 def first_order_x2(lam: float, k: float, x0):
@@ -173,16 +174,14 @@ def first_order_x2(lam: float, k: float, x0):
     lam < 0: x2 = s + (x2(0) - s)·e^{lam t} with s = -k/lam; lam == 0: x2 = x2(0) + k·t.
     """
     if lam == 0.0:
-        return _make("x2", x0, (x0[0], x0[1], x0[2]), (0.0, k, x0[1]), (0.0, 0.0, 0.5 * k),
-                     0.0, 0.0, _Z3, _Z3, False)
+        return _make("x2", x0, (0.0, k, x0[1]), (0.0, 0.0, 0.5 * k), 0.0, 0.0, _Z3, _Z3, False)
     s = -k / lam
     d = x0[1] - s
-    return _make("x2", x0, (x0[0], s, x0[2] - d / lam), (0.0, 0.0, s), _Z3, lam, 0.0,
-                 (0.0, d, d / lam), _Z3, False)
+    return _make("x2", x0, (0.0, 0.0, s), _Z3, lam, 0.0, (0.0, d, d / lam), _Z3, False)
 
 
 def static(x0):
-    return _make("static", x0, tuple(x0), _Z3, _Z3, 0.0, 0.0, _Z3, _Z3, False)
+    return _make("static", x0, _Z3, _Z3, 0.0, 0.0, _Z3, _Z3, False)
 
 
 def hval(g, x) -> float:

@@ -12,7 +12,9 @@ Each port owns 16 pin nets named ``P<port><n>`` (``PE9``). Modes (MODER):
 
 Alternate functions come from the STM32F746 datasheet (DS10916, table "Alternate function
 mapping"); only timer channels are listed here, the functions this model can route. Selecting an
-AF number on a pin in AF mode that is not in the table raises UnsupportedConfiguration.
+AF number on a pin in AF mode that is not in the table raises UnsupportedConfiguration, except
+AF0 (the reset value: system functions), which leaves the pin undriven, so that firmware may set
+MODER before AFR.
 """
 
 from __future__ import annotations
@@ -100,11 +102,14 @@ class Gpio(Peripheral):
             elif mode == _MODE_AF:
                 af = (afr >> 4 * n) & 0xF
                 key = (net.name, af)
-                if key not in self.af_table:
+                if af == 0:
+                    pass  # AF0, the system functions (MCO, SWD, trace): not routed, the pin is not driven
+                elif key not in self.af_table:
                     reg = "AFRL" if n < 8 else "AFRH"
                     raise UnsupportedConfiguration(self.name, reg, f"{reg}{n}", af,
                                                    f"(alternate function of {net.name}) is not modelled")
-                route = self.af_table[key]
+                else:
+                    route = self.af_table[key]
             self._route(n, route)
             if route is not None:
                 periph = self.mcu.periph[route[0]]
