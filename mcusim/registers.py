@@ -163,7 +163,11 @@ class Peripheral:
                 raise UnsupportedConfiguration(self.name, reg.name, f.name, v)
         self.value[reg.name] = new
         if reg.on_write:
-            getattr(self, reg.on_write)(old, new)
+            try:
+                getattr(self, reg.on_write)(old, new)
+            except UnsupportedConfiguration:
+                self.value[reg.name] = old  # a refused write leaves the register as it was
+                raise
         if m["w"]:
             self.value[reg.name] &= ~m["w"]
         if self.access_log is not None:

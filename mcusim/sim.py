@@ -20,8 +20,12 @@ class Simulation:
         self.profile = profile
         self.wall_s = 0.0
         self._traces = []
-        for name, value in topics:
-            self.publish(name, value)
+        try:
+            for name, value in topics:
+                self.publish(name, value)
+        except McusimError:
+            self.discard()
+            raise
 
     # --- time ---------------------------------------------------------------------------------
     @property
@@ -89,6 +93,12 @@ class Simulation:
         tr = VcdTrace(self, path, sample=sample)
         self._traces.append(tr)
         return tr
+
+    def discard(self) -> None:
+        """Drop the firmware's task coroutines (a simulation that will not run)."""
+        if self.mcu.rtos is not None:
+            for task in self.mcu.rtos.tasks:
+                task.coro.close()
 
     def close(self) -> None:
         for tr in self._traces:

@@ -33,7 +33,8 @@ class VcdTrace:
             irqs = spec.get("irqs", {})
             shared = len(set(irqs.values())) == 1
             for kind, n in irqs.items():
-                names.setdefault(n, spec["name"] if shared else f"{spec['name']}_{kind.upper()}")
+                suffix = {"update": "UP"}.get(kind, kind.upper())  # CMSIS: TIM1_UP_TIM10_IRQn
+                names.setdefault(n, spec["name"] if shared else f"{spec['name']}_{suffix}")
         irq_vars = {n: self.w.register_var(f"{board}.irq", name, "wire", size=1, init=0)
                     for n, name in sorted(names.items())}
 

@@ -212,7 +212,9 @@ def first_fire(h_at, m2: float, na: int, nb: int, ha: float, hb: float, strict: 
         return nb if (hb < 0.0 if strict else hb <= 0.0) else None
     dt = (nb - na) * inv_hz
     e = 0.125 * m2 * dt * dt
-    if ha > e and hb > e:
+    # min of h on [na, nb] >= min(ha, hb) - e. A strict guard fires only below 0, so a guard
+    # resting exactly on 0 (a shaft stuck on an encoder threshold, e = 0) is proven quiet at once.
+    if (ha >= e and hb >= e) if strict else (ha > e and hb > e):
         return None
     nm = (na + nb) >> 1
     hm = h_at(nm)

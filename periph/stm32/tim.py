@@ -62,7 +62,7 @@ from mcusim.errors import UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import Net, Port
 
-from .tim_input import TiInput, encoder_direction_up, filter_timing
+from .tim_input import EncoderStage, TiInput
 
 # CR1 bits (§1.2)
 CEN, UDIS, URS, OPM, DIR, ARPE, UIFREMAP = 1 << 0, 1 << 1, 1 << 2, 1 << 3, 1 << 4, 1 << 7, 1 << 11
@@ -145,7 +145,7 @@ def _registers(bits: int, arr_reset: int) -> tuple:
     )
 
 
-class Tim(Peripheral):
+class Tim(EncoderStage, Peripheral):
     SIZE = 0x400
 
     def __init__(self, name: str, mcu, clock, irqs: dict, counter_bits: int = 16,
@@ -469,7 +469,7 @@ class Tim(Peripheral):
         super().write_register(reg, data, lanes)
 
     def _read_sr(self, stored: int) -> int:
-        if any(self._lazy):
+        if self._lazy.count(None) != 5:
             self._flush_lazy()
         return self.value["SR"]
 
@@ -603,58 +603,3 @@ class Tim(Peripheral):
             e = bool(ccer >> (4 * (ch - 1)) & 1)
             self._en[ch] = e and moe and self._mode[ch] != INPUT
             self._cap[ch] = e and self._mode[ch] == INPUT
-
-    # ------------------------------------------------------------------ encoder mode (§4)
-    def _filter(self, ch: int):
-        return filter_timing(self._icf[ch], (self.value["CR1"] >> 8) & 3, self._P)
-
-    def _ti_net(self, net) -> None:
-        if not self._sms:
-            return
-        ch = 1 if net is self.ti[1] else 2 if net is self.ti[2] else 0
-        if ch:
-            self._inp[ch].edge(net.level ^ self._pol[ch], self.kernel.now, *self._filter(ch), self._P)
-
-    def _ti_apply(self, ch: int, v: int) -> None:
-        """A filtered TIxFPx transition reaches the decoder (§4.2, §4.3)."""
-        other = self._inp[3 - ch]
-        if other.pending_at(self.kernel.now) is not None:
-            return  # TI1 and TI2 changed in the same sample: undefined in the RM, count nothing
-        if not self._sms or not self.value["CR1"] & CEN:
-            return
-        up = encoder_direction_up(ch, v, other.level)
-        self._up = up  # DIR follows every transition, counting or not
-        if self._sms == 3 or self._sms == ch:
-            self._encoder_pulse(up)
-        if self._cap[ch] and v:  # IC1 = TI1FP1 rising (CCxP already applied): capture CNT
-            self._capn[ch] += 1
-            if self._capn[ch] >= (1 << self._icpsc[ch]):
-                self._capn[ch] = 0
-                sr = self.value["SR"]
-                if sr & CCIF[ch]:
-                    sr |= CCOF[ch]
-                self.value["SR"] = sr | CCIF[ch]
-                self.value[f"CCR{ch}"] = self._cnt
-                self._irq()
-
-    def _encoder_pulse(self, up: bool) -> None:
-        """§4.3: the prescaler counter counts every pulse upwards; CNT moves when it wraps."""
-        if self._pscc < self._psc:
-            self._pscc += 1
-            return
-        self._pscc = 0
-        if self._arr == 0:  # ARR=0 blocks the counter
-            return
-        cnt = self._cnt
-        if up:
-            if cnt >= self._arr:  # overflow ARR -> 0
-                self._count_wrap()
-                self._cnt = 0
-            else:
-                self._cnt = cnt + 1
-        elif cnt == 0:  # underflow 0 -> ARR (ARR loads first)
-            self._count_wrap()
-            self._cnt = self._arr
-        else:
-            self._cnt = cnt - 1
-        self._plan(tick_up=up)

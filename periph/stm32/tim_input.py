@@ -99,3 +99,67 @@ def encoder_direction_up(ch: int, v: int, other: int) -> bool:
     """§4.2 direction table, compact form: an edge on TI1 to level v counts up iff v != TI2 level;
     an edge on TI2 to level v counts up iff v == TI1 level (levels are TIxFPx, after CCxP)."""
     return (v != other) if ch == 1 else (v == other)
+
+
+_CEN = 1
+_CCIF = (0, 1 << 1, 1 << 2, 1 << 3, 1 << 4)
+_CCOF = (0, 1 << 9, 1 << 10, 1 << 11, 1 << 12)
+
+
+class EncoderStage:
+    """Encoder-mode part of :class:`periph.stm32.tim.Tim` (§4): decoding, DIR, up-only prescaler
+    counter, wrap with UEV, and the capture of CNT on the active edge of TI1FP1/TI2FP2."""
+
+    def _filter(self, ch: int):
+        return filter_timing(self._icf[ch], (self.value["CR1"] >> 8) & 3, self._P)
+
+    def _ti_net(self, net) -> None:
+        if not self._sms:
+            return
+        ch = 1 if net is self.ti[1] else 2 if net is self.ti[2] else 0
+        if ch:
+            self._inp[ch].edge(net.level ^ self._pol[ch], self.kernel.now, *self._filter(ch), self._P)
+
+    def _ti_apply(self, ch: int, v: int) -> None:
+        """A filtered TIxFPx transition reaches the decoder (§4.2, §4.3)."""
+        other = self._inp[3 - ch]
+        if other.pending_at(self.kernel.now) is not None:
+            return  # TI1 and TI2 changed in the same sample: undefined in the RM, count nothing
+        if not self._sms or not self.value["CR1"] & _CEN:
+            return
+        up = encoder_direction_up(ch, v, other.level)
+        self._up = up  # DIR follows every transition, counting or not
+        if self._sms == 3 or self._sms == ch:
+            self._encoder_pulse(up)
+        if self._cap[ch] and v:  # IC1 = TI1FP1 rising (CCxP already applied): capture CNT
+            self._capn[ch] += 1
+            if self._capn[ch] >= (1 << self._icpsc[ch]):
+                self._capn[ch] = 0
+                sr = self.value["SR"]
+                if sr & _CCIF[ch]:
+                    sr |= _CCOF[ch]
+                self.value["SR"] = sr | _CCIF[ch]
+                self.value[f"CCR{ch}"] = self._cnt
+                self._irq()
+
+    def _encoder_pulse(self, up: bool) -> None:
+        """§4.3: the prescaler counter counts every pulse upwards; CNT moves when it wraps."""
+        if self._pscc < self._psc:
+            self._pscc += 1
+            return
+        self._pscc = 0
+        if self._arr == 0:  # ARR=0 blocks the counter
+            return
+        cnt = self._cnt
+        if up:
+            if cnt >= self._arr:  # overflow ARR -> 0
+                self._count_wrap()
+                self._cnt = 0
+            else:
+                self._cnt = cnt + 1
+        elif cnt == 0:  # underflow 0 -> ARR (ARR loads first)
+            self._count_wrap()
+            self._cnt = self._arr
+        else:
+            self._cnt = cnt - 1
+        self._plan(tick_up=up)

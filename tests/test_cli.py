@@ -1,0 +1,75 @@
+"""The command line: listing, running with VCD and JSON summary, and one-line errors with exit 2."""
+
+import json
+import subprocess
+import sys
+
+from vcd.reader import TokenKind, tokenize
+
+from mcusim.cli import main
+
+
+def test_boards_lists_nucleo(capsys):
+    assert main(["boards"]) == 0
+    assert "nucleo-f746" in capsys.readouterr().out
+
+
+def test_run_writes_summary_json_and_vcd(tmp_path, capsys):
+    vcd, js = tmp_path / "t.vcd", tmp_path / "s.json"
+    rc = main(["run", "nucleo-f746", "--duration", "20ms", "--set", "/motor1/set_pos=0.05",
+               "--vcd", str(vcd), "--summary", str(js)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "motor1" in out and "real time" in out
+    s = json.loads(js.read_text())
+    assert s["simulated_s"] == 0.02
+    assert set(s) >= {"simulated_s", "wall_s", "realtime_factor", "events", "motors"}
+    assert set(s["motors"]["motor1"]) == {"angle_rad", "setpoint_rad", "peak_current_a"}
+    assert s["motors"]["motor1"]["setpoint_rad"] == 0.05
+    # the VCD names pins as on the chip in a scope named after the board, IRQ lines and plant reals
+    scopes, names, changes = [], set(), 0
+    with open(vcd, "rb") as f:
+        for tok in tokenize(f):
+            if tok.kind is TokenKind.SCOPE:
+                scopes.append(tok.scope.ident)
+            elif tok.kind is TokenKind.VAR:
+                names.add((tok.var.reference, tok.var.type_.value))
+            elif tok.kind is TokenKind.CHANGE_SCALAR:
+                changes += 1
+    assert "nucleo-f746" in scopes
+    for pin in ("PE9", "PE11", "PA5", "PA3", "PB4", "PB5", "PD12", "PD13", "PF15", "PF5"):
+        assert (pin, "wire") in names
+    assert ("TIM3", "wire") in names and ("TIM1_UP", "wire") in names
+    assert ("motor1.angle_rad", "real") in names and ("motor1.current_a", "real") in names
+    # a 0.05 rad step asks for 20 % duty at first (Kp = 400 %/rad): PE9 carries 50 kHz PWM, two
+    # edges per 20 µs period, until the motor nears the set point
+    assert changes > 500
+
+
+def test_bad_unit_is_one_line_and_exit_2(capsys):
+    try:
+        main(["run", "nucleo-f746", "--duration", "2 parsecs"])
+    except SystemExit as exc:
+        assert exc.code == 2
+    err = capsys.readouterr().err
+    assert "bad duration '2 parsecs'" in err and "Traceback" not in err
+
+
+def test_unknown_board_exit_2(capsys):
+    assert main(["run", "nucleo-f4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mcusim: error: unknown board 'nucleo-f4'") and "\n" not in err
+
+
+def test_unknown_set_key_exit_2(capsys):
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--set", "motor1.banana=3"]) == 2
+    assert "banana" in capsys.readouterr().err
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--set", "/motor3/set_pos=1"]) == 2
+    assert "/motor3/set_pos" in capsys.readouterr().err
+
+
+def test_console_entry_point_runs_without_traceback():
+    r = subprocess.run([sys.executable, "-m", "mcusim", "run", "nucleo-f746", "--duration", "1ms",
+                        "--set", "firmware.variant=bogus"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "firmware.variant must be one of" in r.stderr and "Traceback" not in r.stderr
