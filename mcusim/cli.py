@@ -81,8 +81,11 @@ def _print_summary(s: dict) -> None:
 
 
 def cmd_run(args) -> int:
+    from .board import read_profile
     from .sim import load
-    sim = load(args.board, firmware=not args.no_firmware, overrides=dict(args.sets))
+    sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
+    sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
+    sim = load(args.board, firmware=not args.no_firmware, overrides=sets)
     if args.vcd:
         sim.trace_vcd(args.vcd, sample=args.vcd_sample)
     try:
