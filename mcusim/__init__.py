@@ -3,5 +3,5 @@
 from .errors import BusFault, ConfigError, McusimError, UnsupportedConfiguration
 from .sim import Simulation, load
 
-__all__ = ["load", "Simulation", "McusimError", "ConfigError", "UnsupportedConfiguration", "BusFault"]
+__all__ = ["BusFault", "ConfigError", "McusimError", "Simulation", "UnsupportedConfiguration", "load"]
 __version__ = "0.1.0"

@@ -167,7 +167,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             parts[name] = cls(kernel, name=name, **args, **params)
         except TypeError as exc:
             raise ConfigError(f"{where}: part {name}: {exc}") from None
-    for part, terms in wiring.items():
+    for part in wiring:
         if part not in parts:
             raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
 

@@ -32,7 +32,7 @@ THREAD_PRIO = 1 << 16  # execution priority of thread mode: below every exceptio
 
 class _Req:
     """An awaitable request a task hands to the runtime."""
-    __slots__ = ("kind", "arg")
+    __slots__ = ("arg", "kind")
 
     def __init__(self, kind, arg):
         self.kind, self.arg = kind, arg

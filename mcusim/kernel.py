@@ -18,7 +18,7 @@ PRIO_OBSERVE = 30
 
 
 class Event:
-    __slots__ = ("time", "fn", "args", "cancelled")
+    __slots__ = ("args", "cancelled", "fn", "time")
 
     def __init__(self, time, fn, args):
         self.time, self.fn, self.args, self.cancelled = time, fn, args, False

@@ -32,7 +32,8 @@ which bypass the access rules.
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 from .errors import BusFault, UnsupportedConfiguration
 

@@ -11,7 +11,7 @@ from .errors import McusimError
 
 
 class Net:
-    __slots__ = ("name", "level", "_drivers", "_forced", "_listeners", "pull")
+    __slots__ = ("_drivers", "_forced", "_listeners", "level", "name", "pull")
 
     def __init__(self, name: str, level: int = 0, pull: int | None = None):
         self.name = name
@@ -86,7 +86,7 @@ class Port:
     Listeners ``fn(port)`` are called whenever the value changes, including to or from ``None``.
     """
 
-    __slots__ = ("name", "value", "_listeners")
+    __slots__ = ("_listeners", "name", "value")
 
     def __init__(self, name: str):
         self.name, self.value, self._listeners = name, None, []

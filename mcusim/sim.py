@@ -42,7 +42,7 @@ class Simulation:
         """Core clock cycles since reset."""
         return self.kernel.now // self.mcu.core_clock.period
 
-    def run(self, *, cycles: int | None = None, seconds=None, until=None) -> "Simulation":
+    def run(self, *, cycles: int | None = None, seconds=None, until=None) -> Simulation:
         """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), or to absolute ``until`` seconds."""
         given = [x is not None for x in (cycles, seconds, until)]
         if sum(given) != 1:

@@ -24,7 +24,7 @@ def _number(text: str) -> Fraction:
     return Fraction(text)  # Fraction parses decimal and exponent notation exactly
 
 
-def parse_duration(value: str | int | float | Fraction) -> Fraction:
+def parse_duration(value: str | float | Fraction) -> Fraction:
     """``"2s"``, ``"500ms"``, ``"10us"``, ``"1.5e-3"`` (seconds) -> exact seconds as a Fraction."""
     if isinstance(value, (int, Fraction)):
         return Fraction(value)
@@ -39,7 +39,7 @@ def parse_duration(value: str | int | float | Fraction) -> Fraction:
     return seconds
 
 
-def parse_frequency(value: str | int | float | Fraction) -> Fraction:
+def parse_frequency(value: str | float | Fraction) -> Fraction:
     """``"50kHz"``, ``"216MHz"``, ``"16e6"`` (hertz) -> exact hertz as a Fraction."""
     if isinstance(value, (int, Fraction)):
         return Fraction(value)
@@ -82,7 +82,7 @@ class TimeBase:
     def seconds(self, ticks: int) -> float:
         return ticks / self.base_hz
 
-    def clock(self, name: str, hz) -> "Clock":
+    def clock(self, name: str, hz) -> Clock:
         return Clock(name, parse_frequency(hz), self)
 
 

@@ -2,7 +2,8 @@
 
 import math
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mcusim
 from firmware.controlmotor.encoder import encoder_get_position, encoder_set_reset, encoder_timn_stop

@@ -9,7 +9,8 @@ in the wrong direction for as many samples as it took to wind up.
 
 import math
 
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
 

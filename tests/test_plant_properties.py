@@ -4,7 +4,8 @@ at their first firing tick, and the closed form equals the matrix exponential.""
 import math
 
 import numpy as np
-from hypothesis import given, settings, HealthCheck, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from mcusim.kernel import Kernel

@@ -1,7 +1,8 @@
 """Declarative registers: access kinds, byte lanes, hooks, unmodelled fields, bus faults."""
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from mcusim.errors import BusFault, UnsupportedConfiguration
 from mcusim.registers import Bus, Field, Peripheral, Register

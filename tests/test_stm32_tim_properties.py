@@ -1,12 +1,25 @@
 """Hypothesis properties of the STM32 timer model against the per-tick oracle (tests/tim_oracle.py)
 and against the closed-form rules of the reference sheet (§2.3, §3.2, §4.2-§4.3)."""
 
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_stm32_tim import (
+    ARPE,
+    CEN,
+    DIR,
+    OC1PE,
+    PWM1,
+    PWM2,
+    enc_rig,
+    high_ticks,
+    level_at,
+    pwm_rig,
+    uif_times,
+)
+from tim_oracle import Rig, TimOracle
 
 from mcusim.kernel import PRIO_CPU
 from periph.stm32.tim_input import RESYNC_CYCLES, filter_timing
-from test_stm32_tim import ARPE, CEN, DIR, OC1PE, PWM1, PWM2, enc_rig, high_ticks, level_at, pwm_rig, uif_times
-from tim_oracle import Rig, TimOracle
 
 SETTINGS = settings(max_examples=int(__import__("os").environ.get("TIM_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -3,7 +3,8 @@
 from fractions import Fraction
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from mcusim.errors import TimeError
 from mcusim.time import TimeBase, parse_duration, parse_frequency

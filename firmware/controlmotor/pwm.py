@@ -56,7 +56,7 @@ def pwm_timn_set_duty(pwm: Pwm, duty: float) -> None:
     duty = max(-100.0, min(100.0, duty))
     h = pwm.htim
     top = hal_tim.__HAL_TIM_GET_AUTORELOAD(h) + 1
-    ccr = int(round(abs(duty) * top / 100.0))
+    ccr = round(abs(duty) * top / 100.0)
     fwd, rev = (ccr, 0) if duty >= 0 else (0, ccr)
     hal_tim.__HAL_TIM_SET_COMPARE(h, pwm.ch_fwd, fwd)
     hal_tim.__HAL_TIM_SET_COMPARE(h, pwm.ch_rev, rev)

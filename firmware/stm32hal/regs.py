@@ -22,7 +22,7 @@ SCB_BASE = 0xE000ED00
 class RegView:
     """A CMSIS-like peripheral struct over the bus."""
 
-    __slots__ = ("_bus", "_base", "_regs", "name")
+    __slots__ = ("_base", "_bus", "_regs", "name")
 
     def __init__(self, bus, name, base, regs):
         object.__setattr__(self, "_bus", bus)

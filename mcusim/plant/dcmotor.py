@@ -100,7 +100,7 @@ class MotorParams:
             raise ConfigError(f"motor parameter load_torque = {self.load_torque} must be finite")
 
     @classmethod
-    def from_mapping(cls, mapping: dict, base: "MotorParams | None" = None) -> "MotorParams":
+    def from_mapping(cls, mapping: dict, base: MotorParams | None = None) -> MotorParams:
         """Defaults (or ``base``) overridden by name; an unknown name raises :class:`ConfigError`."""
         return replace(base or cls(), **_check_overrides(cls, dict(mapping), "motor"))
 

@@ -59,7 +59,7 @@ class L6206Params:
             raise ConfigError(f"l6206 parameter V_th = {self.V_th} must be between 0 and V_pullup = {self.V_pullup}")
 
     @classmethod
-    def from_mapping(cls, mapping: dict, base: "L6206Params | None" = None) -> "L6206Params":
+    def from_mapping(cls, mapping: dict, base: L6206Params | None = None) -> L6206Params:
         return replace(base or cls(), **_check_overrides(cls, dict(mapping), "l6206"))
 
     @property

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["Traj", "eig2", "affine2", "first_order_x1", "first_order_x2", "static", "hval", "first_fire"]
+__all__ = ["Traj", "affine2", "eig2", "first_fire", "first_order_x1", "first_order_x2", "hval", "static"]
 
 
 class Traj:
@@ -45,7 +45,7 @@ class Traj:
     eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·(e^{lam[0]·t} − 1))``.
     """
 
-    __slots__ = ("x0", "b", "c", "lam1", "lam2", "d1", "d2", "cplx", "m2", "kind")
+    __slots__ = ("b", "c", "cplx", "d1", "d2", "kind", "lam1", "lam2", "m2", "x0")
 
     def eval(self, t: float):
         """State (x1, x2, x3) at ``t`` seconds after the segment start (``t == 0`` gives x0 exactly)."""

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from fractions import Fraction
 
-from mcusim.errors import UnsupportedConfiguration
+from mcusim.errors import TimeError, UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 
 _AHB_DIV = {0b1000: 2, 0b1001: 4, 0b1010: 8, 0b1011: 16, 0b1100: 64, 0b1101: 128, 0b1110: 256, 0b1111: 512}
@@ -82,7 +82,7 @@ class Rcc(Peripheral):
                 continue
             try:
                 clock = tb.clock(name, hz)
-            except Exception as exc:  # the time base must contain every clock
+            except TimeError as exc:  # the time base must contain every clock
                 raise UnsupportedConfiguration(self.name, "CFGR", None, self.value["CFGR"],
                                                f"gives {name} = {hz} Hz, not in the time base: {exc}") from None
             self.mcu.clocks[name] = clock

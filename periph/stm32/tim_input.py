@@ -50,7 +50,7 @@ class TiInput:
     as lists ``[t_effect, level, t_last_sample, event]``.
     """
 
-    __slots__ = ("kernel", "apply", "ch", "level", "last", "queue")
+    __slots__ = ("apply", "ch", "kernel", "last", "level", "queue")
 
     def __init__(self, kernel, ch: int, apply):
         self.kernel, self.ch, self.apply = kernel, ch, apply
