@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .errors import ConfigError
 from .firmware import Cpu, Rtos
-from .irq import Nvic, Scb
+from .irq import AvrInterrupts, Nvic, Scb
 from .kernel import Kernel
 from .mcu import Mcu
 from .registers import Bus
@@ -108,13 +108,17 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     mcu = Mcu(board["mcu"], kernel, bus, timebase.clock("SYSCLK", sysclk))
     mcu.clocks["SYSCLK"] = mcu.core_clock
 
-    nvic = Nvic(num_irqs=core.get("nvic_irqs", 98), prio_bits=core.get("nvic_prio_bits", 4))
-    mcu.nvic = nvic
-    bus.attach(0xE000E100, nvic)
-    bus.attach(0xE000ED00, Scb(nvic))
+    avr = core.get("kind", "").startswith("avr")
+    if avr:
+        irq = AvrInterrupts(num_vectors=core.get("vectors", 26))
+    else:
+        irq = Nvic(num_irqs=core.get("nvic_irqs", 98), prio_bits=core.get("nvic_prio_bits", 4))
+        bus.attach(0xE000E100, irq)
+        bus.attach(0xE000ED00, Scb(irq))
+    mcu.nvic = mcu.irq = irq
     for spec in profile.get("peripheral", []):
         cls = _import(spec["class"], f"{where}: peripheral {spec.get('name')}")
-        kwargs = {k: v for k, v in spec.items() if k not in ("name", "class", "base", "clock")}
+        kwargs = {k: v for k, v in spec.items() if k not in ("name", "class", "base", "clock", "outputs")}
         if spec["class"].endswith(":Rcc"):
             kwargs["sysclk_hz"] = sysclk
         if "clock" in spec:
@@ -127,17 +131,30 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         except TypeError as exc:
             raise ConfigError(f"{where}: peripheral {spec['name']}: {exc}") from None
         mcu.periph[spec["name"]] = p
-        bus.attach(spec["base"], p)
+        if p.BUS_WIDTH == 1:
+            bus.attach_registers(spec.get("base", 0), p)  # AVR: registers scattered in data space
+        else:
+            bus.attach(spec["base"], p)
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
+    # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1)
+    for spec in profile.get("peripheral", []):
+        for out, pin_name in spec.get("outputs", {}).items():
+            net = mcu.pin(pin_name)
+            owner = next((q for q in mcu.periph.values() if net in getattr(q, "pins", ())
+                          and hasattr(q, "connect_override")), None)
+            if owner is None:
+                raise ConfigError(f"{where}: peripheral {spec['name']}: no port owns pin {pin_name}")
+            owner.connect_override(owner.pins.index(net), mcu.periph[spec["name"]].oc[out])
 
-    from periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
-    hclk = mcu.clocks.get("HCLK", mcu.core_clock)
-    ref = timebase.clock("SysTick_ref", hclk.hz / 8) if core.get("systick_ref") == "HCLK/8" else hclk
-    systick = SysTick("SysTick", mcu, mcu.core_clock, ref)
-    mcu.periph["SysTick"] = systick
-    bus.attach(0xE000E010, systick)
-    mcu.cpu = Cpu(kernel, mcu.core_clock, nvic, entry_latency=core.get("entry_latency", 12))
+    if not avr:
+        from periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
+        hclk = mcu.clocks.get("HCLK", mcu.core_clock)
+        ref = timebase.clock("SysTick_ref", hclk.hz / 8) if core.get("systick_ref") == "HCLK/8" else hclk
+        systick = SysTick("SysTick", mcu, mcu.core_clock, ref)
+        mcu.periph["SysTick"] = systick
+        bus.attach(0xE000E010, systick)
+    mcu.cpu = Cpu(kernel, mcu.core_clock, irq, entry_latency=core.get("entry_latency", 12))
     mcu.rtos = Rtos(mcu.cpu)
 
     # plant parts and wiring

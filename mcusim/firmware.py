@@ -73,6 +73,7 @@ class Cpu:
     """A single core executing ISRs (from the NVIC) and RTOS tasks, with cycle costs."""
 
     def __init__(self, kernel, clock, nvic, entry_latency=12, name="cpu"):
+        # ``nvic`` is the interrupt controller: mcusim.irq.Nvic or AvrInterrupts (same protocol)
         self.kernel, self.clock, self.nvic, self.name = kernel, clock, nvic, name
         self.entry_latency = entry_latency
         nvic.cpu = self
@@ -163,7 +164,7 @@ class Cpu:
         self._pause(self._top())
         self.nvic.acknowledge(irqn)
         handler, cost = self.vectors[irqn]
-        ctx = IsrContext(irqn, prio, handler, cost)
+        ctx = IsrContext(irqn, self.nvic.context_priority(irqn), handler, cost)
         self.stack.append(ctx)
         self._busy(ctx, self.clock.cycles(self.entry_latency), lambda: self._enter(ctx))
 
@@ -177,6 +178,8 @@ class Cpu:
         assert self.stack[-1] is ctx
         self.stack.pop()
         self.nvic.complete(ctx.irqn)
+        if self.rtos is not None:
+            self.rtos.interrupt_done()
         best = self.nvic.best_pending()
         if best is not None and best[0] < self.current_priority():
             self._dispatch()  # tail-chain or nested preemption of what was below
@@ -220,6 +223,21 @@ class Rtos:
         return _Req("delay", ticks)
 
     @staticmethod
+    def wait_for_interrupt() -> _Req:
+        """Block until the next interrupt handler returns.
+
+        A polling loop (Arduino ``loop()``, a HAL busy-wait) that found nothing to do awaits this:
+        what it polls can only change through an interrupt, so the passes in between are not
+        simulated one by one; their cycles are part of the waiting time.
+        """
+        return _Req("wfi", None)
+
+    def interrupt_done(self) -> None:
+        for t in self.tasks:
+            if t.state == "blocked" and t.wake_tick == "wfi":
+                t.state, t.wake_tick = "ready", None
+
+    @staticmethod
     def delay_until(wake_tick: int) -> _Req:
         """vTaskDelayUntil: block until the tick count reaches ``wake_tick``."""
         return _Req("delay_until", wake_tick)
@@ -228,7 +246,7 @@ class Rtos:
         """xPortSysTickHandler: advance the tick, unblock tasks whose delay expired."""
         self.tick_count += 1
         for t in self.tasks:
-            if t.state == "blocked" and t.wake_tick is not None and t.wake_tick <= self.tick_count:
+            if t.state == "blocked" and isinstance(t.wake_tick, int) and t.wake_tick <= self.tick_count:
                 t.state, t.wake_tick = "ready", None
 
     def reschedule(self) -> None:
@@ -264,6 +282,11 @@ class Rtos:
         if req.kind == "cycles":
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
             self.cpu._busy(task, self.cpu.clock.cycles(req.arg), lambda: self._step(task))
+        elif req.kind == "wfi":
+            task.state, task.wake_tick = "blocked", "wfi"
+            task.on_done = lambda: self._step(task)
+            task.remaining = 0
+            self._switch()
         elif req.kind in ("delay", "delay_until"):
             wake = self.tick_count + req.arg if req.kind == "delay" else req.arg
             if wake <= self.tick_count:

@@ -6,6 +6,9 @@ line is still asserted, the interrupt becomes pending again. Dispatch decisions 
 priority, 12-cycle entry latency) belong to the CPU model in :mod:`mcusim.firmware`.
 
 System exceptions use negative numbers as in CMSIS: SysTick = -1, PendSV = -2.
+
+:class:`AvrInterrupts` is the AVR model: fixed priority by vector number, a global I flag (SREG
+bit 7) cleared on entry and set again by RETI, and one flag per source kept by its peripheral.
 """
 
 from __future__ import annotations
@@ -63,6 +66,10 @@ class Nvic(Peripheral):
 
     def prio(self, irqn: int) -> int:
         return self.priority.get(irqn, 0)
+
+    def context_priority(self, irqn: int) -> int:
+        """Execution priority while the handler of ``irqn`` runs (its own priority on Cortex-M)."""
+        return self.prio(irqn)
 
     def best_pending(self):
         """(priority, irqn) of the most urgent pending, enabled interrupt, or None."""
@@ -176,3 +183,63 @@ class Scb(Peripheral):
         self.nvic.priority[PENDSV] = ((v >> 16) & 0xFF) >> shift
         self.nvic.priority[SYSTICK] = ((v >> 24) & 0xFF) >> shift
         self.nvic._changed()
+
+
+class AvrInterrupts:
+    """ATmega interrupt logic (datasheet "Reset and Interrupt Handling").
+
+    A peripheral reports each source's condition (its flag AND its enable bit) with
+    ``set_line(vector, level)``; the flag is a single bit, so an event that arrives while the flag is
+    already set is lost, as on the chip. The lowest vector number wins. Entering a handler clears
+    the global I flag and calls the source's ``on_entry`` hook (which clears the flags the hardware
+    clears on vector entry, e.g. TOV1, OCF1A, INTF0, ADIF; TWINT is not cleared). RETI sets I.
+    Nesting happens only if a handler sets I itself (``sei()``).
+    """
+
+    def __init__(self, num_vectors: int = 26):
+        self.num_vectors = num_vectors
+        self.lines: dict[int, bool] = {}
+        self.on_entry: dict[int, object] = {}
+        self.i_flag = False  # SREG.I; the Arduino core's init() starts with sei()
+        self.cpu = None
+        self.line_listeners = []
+        self.active: set[int] = set()
+
+    def set_line(self, vector: int, level: bool) -> None:
+        level = bool(level)
+        if self.lines.get(vector, False) == level:
+            return
+        self.lines[vector] = level
+        for fn in self.line_listeners:
+            fn(vector, level)
+        if level and self.cpu is not None:
+            self.cpu.request_dispatch()
+
+    def set_i(self, enabled: bool) -> None:
+        self.i_flag = bool(enabled)
+        if self.i_flag and self.cpu is not None:
+            self.cpu.request_dispatch()
+
+    def best_pending(self):
+        if not self.i_flag:
+            return None
+        pending = [v for v, lv in self.lines.items() if lv]
+        if not pending:
+            return None
+        v = min(pending)
+        return (v, v)
+
+    def context_priority(self, vector: int) -> int:
+        from .firmware import THREAD_PRIO
+        return THREAD_PRIO  # priority never blocks nesting on AVR: only the I flag does
+
+    def acknowledge(self, vector: int) -> None:
+        self.i_flag = False
+        self.active.add(vector)
+        hook = self.on_entry.get(vector)
+        if hook is not None:
+            hook()
+
+    def complete(self, vector: int) -> None:  # RETI
+        self.active.discard(vector)
+        self.i_flag = True

@@ -183,6 +183,7 @@ class Bus:
         self._bases: list[int] = []
         self._entries: list[tuple[int, int, Peripheral]] = []
         self._cache: dict[int, tuple[Peripheral, int]] = {}
+        self._single: dict[int, tuple[Peripheral, int]] = {}
 
     def attach(self, base: int, periph: Peripheral, size: int | None = None) -> None:
         size = periph.SIZE if size is None else size
@@ -194,7 +195,21 @@ class Bus:
         self._entries.insert(i, (base, size, periph))
         self._cache.clear()
 
+    def attach_registers(self, base: int, periph: Peripheral) -> None:
+        """Map each register of ``periph`` at ``base + offset`` individually (AVR I/O space, where
+        one peripheral's registers are scattered: TIFR1 at 0x36, TIMSK1 at 0x6F, TCCR1A at 0x80)."""
+        for reg in periph.REGISTERS:
+            for k in range(max(1, reg.width // (8 * periph.BUS_WIDTH))):
+                addr = base + reg.offset + k * periph.BUS_WIDTH
+                if addr in self._single or self.peripheral_at(addr) is not None:
+                    raise ValueError(f"{periph.name}.{reg.name} at {addr:#x} overlaps another register")
+                self._single[addr] = (periph, reg.offset + k * periph.BUS_WIDTH)
+        self._cache.clear()
+
     def peripheral_at(self, address: int) -> tuple[Peripheral, int] | None:
+        hit = self._single.get(address)
+        if hit is not None:
+            return hit
         i = bisect.bisect(self._bases, address) - 1
         if i >= 0:
             base, size, p = self._entries[i]

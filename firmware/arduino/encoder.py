@@ -1,0 +1,171 @@
+"""Encoder.h, PJRC Encoder 1.4.4, on the ATmega328P (CORE_INT0_PIN = 2, CORE_INT1_PIN = 3).
+
+``DIRECT_PIN_READ`` becomes ``core.digital_read(pin)``, and ``attachInterrupt``/``noInterrupts``/
+``interrupts``/``delayMicroseconds`` go through the injected Arduino core (see ``core_api``).
+The build is the default one: ``ENCODER_USE_INTERRUPTS`` through the core's ``attachInterrupt``
+trampoline, not ``ENCODER_OPTIMIZE_INTERRUPTS``.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+from firmware.arduino.core_api import CHANGE, INPUT_PULLUP, ArduinoCore
+
+CORE_NUM_INTERRUPT = 2      # interrupt_pins.h, __AVR_ATmega328P__
+ENCODER_ARGLIST_SIZE = CORE_NUM_INTERRUPT
+
+# CPU cycles of one isr0/isr1 run through the attachInterrupt trampoline, vector entry (I cleared)
+# to RETI done, measured with avr-gcc 5.4 -Os on simavr (avr_arduino.md §3: 146–148). Add 4–5
+# cycles of interrupt response.
+ISR_CYCLES = 148
+
+
+def _int32(x: int) -> int:
+    return ((x + 0x80000000) & 0xFFFFFFFF) - 0x80000000
+
+
+@dataclass
+class EncoderInternalState:
+    """Encoder_internal_state_t; the pin register/bitmask pairs become the core and pin numbers."""
+    core: ArduinoCore
+    pin1: int
+    pin2: int
+    state: int = 0
+    position: int = 0
+
+
+class InterruptArgs:
+    """The static ``interruptArgs[]`` of class Encoder and the static ``isr0``/``isr1`` using it.
+
+    The C has one table per firmware image; here there is one per core (per simulated MCU), so two
+    simulations in one process do not share it. ``isr0``/``isr1`` are zero-argument callables for
+    binding to the INT0/INT1 vectors.
+    """
+
+    def __init__(self):
+        self.args: list[EncoderInternalState | None] = [None] * ENCODER_ARGLIST_SIZE
+        self.isr = (self.isr0, self.isr1)
+
+    def isr0(self) -> None:
+        Encoder.update(self.args[0])
+
+    def isr1(self) -> None:
+        Encoder.update(self.args[1])
+
+
+_interrupt_args: dict[int, InterruptArgs] = {}   # id(core) -> table, dropped when the core dies
+
+
+def interrupt_args_for(core: ArduinoCore) -> InterruptArgs:
+    """The interruptArgs table of the firmware image running on ``core`` (which must be weak-referenceable)."""
+    table = _interrupt_args.get(id(core))
+    if table is None:
+        table = _interrupt_args[id(core)] = InterruptArgs()
+        weakref.finalize(core, _interrupt_args.pop, id(core), None)
+    return table
+
+
+class Encoder:
+    ISR_CYCLES = ISR_CYCLES
+
+    def __init__(self, core: ArduinoCore, pin1: int, pin2: int):
+        self.core = core
+        self.interrupt_args = interrupt_args_for(core)
+        core.pin_mode(pin1, INPUT_PULLUP)
+        core.pin_mode(pin2, INPUT_PULLUP)
+        self.encoder = EncoderInternalState(core, pin1, pin2)
+        self.encoder.position = 0
+        # allow time for a passive R-C filter to charge
+        # through the pullup resistors, before reading
+        # the initial state
+        core.delay_microseconds(2000)
+        s = 0
+        if core.digital_read(pin1):
+            s |= 1
+        if core.digital_read(pin2):
+            s |= 2
+        self.encoder.state = s
+        self.interrupts_in_use = self.attach_interrupt(pin1, self.encoder)
+        self.interrupts_in_use += self.attach_interrupt(pin2, self.encoder)
+
+    def read(self) -> int:
+        if self.interrupts_in_use < 2:
+            self.core.no_interrupts()
+            Encoder.update(self.encoder)
+        else:
+            self.core.no_interrupts()
+        ret = self.encoder.position
+        self.core.interrupts()
+        return ret
+
+    def read_and_reset(self) -> int:
+        if self.interrupts_in_use < 2:
+            self.core.no_interrupts()
+            Encoder.update(self.encoder)
+        else:
+            self.core.no_interrupts()
+        ret = self.encoder.position
+        self.encoder.position = 0
+        self.core.interrupts()
+        return ret
+
+    def write(self, p: int) -> None:
+        self.core.no_interrupts()
+        self.encoder.position = _int32(p)   # int32_t parameter
+        self.core.interrupts()
+
+    #                           _______         _______
+    #               Pin1 ______|       |_______|       |______ Pin1
+    # negative <---         _______         _______         __      --> positive
+    #               Pin2 __|       |_______|       |_______|   Pin2
+
+    #   new     new     old     old
+    #   pin2    pin1    pin2    pin1    Result
+    #   ----    ----    ----    ----    ------
+    #   0       0       0       0       no movement
+    #   0       0       0       1       +1
+    #   0       0       1       0       -1
+    #   0       0       1       1       +2  (assume pin1 edges only)
+    #   0       1       0       0       -1
+    #   0       1       0       1       no movement
+    #   0       1       1       0       -2  (assume pin1 edges only)
+    #   0       1       1       1       +1
+    #   1       0       0       0       +1
+    #   1       0       0       1       -2  (assume pin1 edges only)
+    #   1       0       1       0       no movement
+    #   1       0       1       1       -1
+    #   1       1       0       0       +2  (assume pin1 edges only)
+    #   1       1       0       1       -1
+    #   1       1       1       0       +1
+    #   1       1       1       1       no movement
+
+    @staticmethod
+    def update(arg: EncoderInternalState) -> None:
+        p1val = arg.core.digital_read(arg.pin1)
+        p2val = arg.core.digital_read(arg.pin2)
+        state = arg.state & 3
+        if p1val:
+            state |= 4
+        if p2val:
+            state |= 8
+        arg.state = state >> 2
+        if state in (1, 7, 8, 14):
+            arg.position = _int32(arg.position + 1)
+        elif state in (2, 4, 11, 13):
+            arg.position = _int32(arg.position - 1)
+        elif state in (3, 12):
+            arg.position = _int32(arg.position + 2)
+        elif state in (6, 9):
+            arg.position = _int32(arg.position - 2)
+
+    def attach_interrupt(self, pin: int, state: EncoderInternalState) -> int:
+        # The C switches on CORE_INT0_PIN/CORE_INT1_PIN (2, 3 on the 328P); asking the core's
+        # digitalPinToInterrupt gives the same mapping without hard-coding the variant.
+        n = self.core.digital_pin_to_interrupt(pin)
+        if not 0 <= n < CORE_NUM_INTERRUPT:
+            return 0
+        self.interrupt_args.args[n] = state
+        self.core.attach_interrupt(n, self.interrupt_args.isr[n], CHANGE)
+        return 1

@@ -1,0 +1,1 @@
+"""ATmega328P peripheral models (registers at their data-space addresses)."""

@@ -1,0 +1,66 @@
+"""External interrupts INT0 (PD2) and INT1 (PD3) (datasheet §13): EICRA, EIMSK, EIFR.
+
+ISCn1:0 = 00 low level, 01 any change, 10 falling edge, 11 rising edge. An edge sets INTFn on the
+next CPU clock edge (the edge detector runs on the I/O clock); INTFn is cleared by writing 1 or on
+vector entry. In level mode there is no flag: the request lasts while the pin is low. An edge that
+arrives while INTFn is already set is lost, as on the chip.
+"""
+
+from __future__ import annotations
+
+from mcusim.registers import Field, Peripheral, Register
+
+
+class ExtInt(Peripheral):
+    BUS_WIDTH = 1
+    REGISTERS = (
+        Register("EIFR", 0x3C, width=8, on_write="_update", fields=(Field("INTF0", 0, access="w1c"),
+                                                                    Field("INTF1", 1, access="w1c"))),
+        Register("EIMSK", 0x3D, width=8, on_write="_update", fields=(Field("INT0", 0), Field("INT1", 1))),
+        Register("EICRA", 0x69, width=8, on_write="_update", fields=(Field("ISC00", 0), Field("ISC01", 1),
+                                                                     Field("ISC10", 2), Field("ISC11", 3))),
+    )
+
+    def __init__(self, name, mcu, clock, pins=("PD2", "PD3"), vectors=(1, 2)):
+        super().__init__(name)
+        self.mcu, self.kernel, self.irq, self.clock = mcu, mcu.kernel, mcu.irq, clock
+        self.nets = [mcu.add_pin(p) for p in pins]
+        self.vectors = vectors
+        self.edges_lost = [0, 0]
+        for n, net in enumerate(self.nets):
+            net.listen(lambda net, n=n: self._edge(n, net.level))
+            mcu.irq.on_entry[vectors[n]] = lambda n=n: self._clear(n)
+
+    def _sense(self, n):
+        return (self.value["EICRA"] >> (2 * n)) & 3
+
+    def _edge(self, n, level):
+        isc = self._sense(n)
+        if isc == 0:
+            self._update(0, 0)
+        elif isc == 1 or (isc == 2 and not level) or (isc == 3 and level):
+            t = self.clock.next_edge(self.kernel.now)
+            if t == self.kernel.now:
+                self._set_flag(n)
+            else:
+                self.kernel.at(t, self._set_flag, n)
+
+    def _set_flag(self, n):
+        if self.value["EIFR"] >> n & 1:
+            self.edges_lost[n] += 1
+        self.set_bits("EIFR", 1 << n)
+        self._update(0, 0)
+
+    def _clear(self, n):
+        if self._sense(n) != 0:
+            self.clear_bits("EIFR", 1 << n)
+            self._update(0, 0)
+
+    def _update(self, old, new):
+        mask = self.value["EIMSK"]
+        for n in range(2):
+            if self._sense(n) == 0:
+                req = not self.nets[n].level
+            else:
+                req = bool(self.value["EIFR"] >> n & 1)
+            self.irq.set_line(self.vectors[n], req and bool(mask >> n & 1))
