@@ -139,6 +139,9 @@ class Nvic(Peripheral):
             self._set_from(data, self.pending, True)
         elif reg.name.startswith("ICPR"):
             self._set_from(data, self.pending, False)
+            # ARM Generic User Guide: clearing the pending state of a level interrupt whose line is
+            # still asserted has no effect
+            self.pending |= {n for n, lv in self.lines.items() if lv and n >= 0}
 
     def bus_write(self, offset, data, size, address):
         reg = self._reg_at(offset, size, address)

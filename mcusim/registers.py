@@ -100,6 +100,7 @@ class Peripheral:
     REGISTERS: tuple = ()
     SIZE = 0x400  # bytes of address space the instance occupies
     BUS_WIDTH = 4  # bytes per register slot (4 on Cortex-M, 1 on AVR)
+    ACCESS_SIZES = (1, 2, 4)  # access widths in bytes the peripheral accepts
 
     def __init__(self, name: str):
         self.name = name
@@ -124,6 +125,9 @@ class Peripheral:
 
     # --- bus-side access ----------------------------------------------------------------
     def _reg_at(self, offset: int, size: int, address: int) -> Register:
+        if size not in self.ACCESS_SIZES:
+            raise BusFault(address, size, f"{self.name} accepts only "
+                                          f"{'/'.join(str(8 * n) for n in self.ACCESS_SIZES)}-bit accesses")
         slot = offset - offset % self.BUS_WIDTH
         reg = self._by_offset.get(slot)
         if reg is None:

@@ -71,7 +71,7 @@ def test_compute_fires_at_millis_0_100_200_in_a_tight_loop():
     pid, clock = make(1.0, 1.0, 0.0)
     pid.set_mode(AUTOMATIC)
     fired = []
-    for ms in range(0, 1101):
+    for ms in range(1101):
         clock.t = ms
         if pid.compute():
             fired.append(ms)
@@ -102,7 +102,7 @@ def test_millis_difference_wraps_modulo_2_32():
 
 
 def test_manual_mode_never_computes():
-    pid, clock = make(1.0, 1.0, 1.0)
+    pid, _ = make(1.0, 1.0, 1.0)
     pid.output = 42.0
     pid.input, pid.setpoint = 1.0, 100.0
     assert not pid.compute()
@@ -155,7 +155,7 @@ def test_direction_change_negates_only_in_automatic():
 
 
 def test_manual_to_automatic_is_bumpless():
-    pid, clock = make(1.0, 2.0, 0.0)
+    pid, _ = make(1.0, 2.0, 0.0)
     pid.setpoint = 50.0
     pid.input = 50.0
     pid.output = 123.0                             # the user drove the output by hand

@@ -104,3 +104,74 @@ def test_unknown_board_and_bad_override_are_config_errors():
         mcusim.load("nucleo-f746", overrides={"motor9.J": 1})
     with pytest.raises(ConfigError, match="banana"):
         mcusim.load("nucleo-f746", overrides={"motor1.banana": 1})
+
+
+def test_uifremap_cnt_write_keeps_bit31_on_32bit_timer():
+    """Sheet §1.2: with UIFREMAP bit 31 of CNT becomes write-only (reads give UIFCPY)."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    sim.mcu.write32(TIM2 + ARR, 0xFFFF_FFFF)
+    sim.mcu.write32(TIM2 + CR1, 1 << 11)
+    sim.mcu.write32(TIM2 + CNT, 0x8000_0005)
+    assert sim.mcu.periph["TIM2"].counter == 0x8000_0005
+    assert sim.mcu.read32(TIM2 + CNT) == 0x0000_0005  # UIF = 0 reads in bit 31
+
+
+def test_clearing_arpe_makes_pending_arr_effective_at_once():
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    m = sim.mcu
+    m.write32(TIM1 + CR1, 1 << 7)          # ARPE
+    m.write32(TIM1 + ARR, 9)
+    m.write32(TIM1 + EGR, 1)
+    m.write32(TIM1 + ARR, 4)               # preloaded, not yet active
+    m.write32(TIM1 + CR1, 0)               # ARPE = 0: the preload reaches the shadow
+    m.write32(TIM1 + SR, 0)
+    m.write32(TIM1 + CR1, 1)
+    sim.run(cycles=5)
+    assert m.read32(TIM1 + SR) & 1          # wrapped at ARR = 4, not 9
+
+
+def test_open_drain_af_pin_releases_on_one_and_analog_disables_pulls():
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    m = sim.mcu
+    af(sim, GPIOE, 9, 1)
+    m.write32(GPIOE + 0x04, 1 << 9)         # OTYPER9 = open drain
+    pwm1(sim, TIM1, 4319, 4320, advanced=True)  # CCR > ARR: OC1 constantly 1
+    pin = sim.pin("PE9")
+    assert "GPIOE" not in pin._drivers       # 1 on an open-drain output: released
+    m.write32(GPIOE + 0x0C, 1 << 18)         # PUPDR9 = pull-up
+    assert pin.level == 1
+    m.write32(GPIOE + 0x00, 3 << 18)         # MODER9 = analog: pulls disabled
+    assert pin.pull is None
+
+
+def test_hal_encoder_reinit_after_counting_down_starts_at_zero():
+    """ST's HAL_TIM_Encoder_Init clears SMS before TIM_Base_SetConfig, so UG sees an up-counter."""
+    from firmware.stm32hal import tim as hal
+    from firmware.stm32hal.regs import Stm32f7
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    dev = Stm32f7(sim.mcu.bus)
+    for port, pin in ((0x40020400, 4), (0x40020400, 5)):
+        af(sim, port, pin, 2)
+    h = hal.TIM_HandleTypeDef(dev.TIM3, hal.TIM_Base_InitTypeDef(Period=99))
+    hal.HAL_TIM_Encoder_Init(h, hal.TIM_Encoder_InitTypeDef())
+    hal.HAL_TIM_Encoder_Start(h)
+    sim.run(cycles=100)
+    a, b = sim.pin("PB4"), sim.pin("PB5")
+    a.drive(0)
+    b.drive(0)
+    sim.run(cycles=100)
+    b.drive(1)                               # B rises with A low: one step down
+    sim.run(cycles=100)
+    assert sim.mcu.read32(0x40000400) & (1 << 4)  # DIR = 1
+    hal.HAL_TIM_Encoder_Stop(h)
+    hal.HAL_TIM_Encoder_Init(h, hal.TIM_Encoder_InitTypeDef())
+    assert sim.mcu.read32(0x40000424) == 0
+
+
+def test_byte_access_to_timer_register_is_a_bus_fault():
+    """RM0385: timer registers are accessed by half-words or words."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    with pytest.raises(BusFault, match="TIM1 accepts only 16/32-bit"):
+        sim.mcu.write8(TIM1 + ARR, 1)
+    sim.mcu.write16(TIM1 + ARR, 0x1234)
+    assert sim.mcu.read16(TIM1 + ARR) == 0x1234

@@ -147,3 +147,40 @@ def test_systick_period_is_load_plus_one(m):
     m.write32(0xE000E010, 0b111)
     m.kernel.run_until(1000)
     assert hits == [100 + 12 + 100 * k for k in range(9)]
+
+
+def test_systick_disable_freezes_val_and_enable_resumes(m):
+    S = 0xE000E010
+    m.write32(S + 4, 9)
+    m.write32(S + 8, 0)
+    m.write32(S, 0b101)              # ENABLE, processor clock
+    m.kernel.run_until(4)            # clocks 1..4: load 9, then 8, 7, 6
+    assert m.read32(S + 8) == 6
+    m.write32(S, 0)                  # disabling (CLKSOURCE cleared too) holds the count
+    m.kernel.run_until(100)
+    assert m.read32(S + 8) == 6
+    m.write32(S, 0b101)
+    m.kernel.run_until(101)
+    assert m.read32(S + 8) == 5
+
+
+def test_systick_load_write_takes_effect_at_next_reload(m):
+    S = 0xE000E010
+    m.write32(S + 4, 9)
+    m.write32(S + 8, 0)
+    m.write32(S, 0b101)
+    m.kernel.run_until(3)            # VAL = 7
+    m.write32(S + 4, 3)
+    vals = []
+    for t in range(4, 15):
+        m.kernel.run_until(t)
+        vals.append((m.read32(S + 8), m.read32(S) >> 16 & 1))
+    # 6..0 with the old count, then reload the new LOAD = 3: COUNTFLAG on each step to 0
+    assert [v for v, _ in vals] == [6, 5, 4, 3, 2, 1, 0, 3, 2, 1, 0]
+    assert [f for _, f in vals] == [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
+
+
+def test_clear_pending_has_no_effect_while_level_line_is_asserted(m):
+    m.nvic.set_line(29, True)
+    m.write32(NVIC + 0x180, 1 << 29)  # ICPR
+    assert m.read32(NVIC + 0x100) & (1 << 29)

@@ -7,7 +7,8 @@ as seen by code that writes registers directly (``TCCR1B = ...``).
 
 from __future__ import annotations
 
-from typing import Callable, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import Protocol, runtime_checkable
 
 # Arduino.h
 LOW, HIGH = 0, 1

@@ -14,7 +14,7 @@ The three pointers ``myInput``, ``myOutput``, ``mySetpoint`` become the attribut
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

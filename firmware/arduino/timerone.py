@@ -9,7 +9,7 @@ with masks: ``unsigned long`` 32-bit, ``unsigned int`` 16-bit, ``unsigned short 
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from firmware.arduino.core_api import OUTPUT, ArduinoCore, DataBus
 
@@ -124,9 +124,8 @@ class TimerOne:
             self._write16(OCR1B, duty_cycle)
 
     def pwm(self, pin: int, duty: int, microseconds: int | None = None) -> None:
-        if microseconds is not None:   # the pwm(pin, duty, microseconds) overload
-            if microseconds & _U32:   # unsigned long > 0
-                self.set_period(microseconds)
+        if microseconds is not None and microseconds & _U32:   # pwm(pin, duty, us), us > 0 unsigned
+            self.set_period(microseconds)
         if pin == TIMER1_A_PIN:
             self.core.pin_mode(TIMER1_A_PIN, OUTPUT)
             self.bus.write8(TCCR1A, self.bus.read8(TCCR1A) | _bv(COM1A1))
@@ -144,9 +143,8 @@ class TimerOne:
 
     # Interrupt Function
     def attach_interrupt(self, isr: Callable[[], None], microseconds: int | None = None) -> None:
-        if microseconds is not None:   # the attachInterrupt(isr, microseconds) overload
-            if microseconds & _U32:   # unsigned long > 0
-                self.set_period(microseconds)
+        if microseconds is not None and microseconds & _U32:   # attachInterrupt(isr, us), us > 0
+            self.set_period(microseconds)
         self.isr_callback = isr
         self.bus.write8(TIMSK1, _bv(TOIE1))
 

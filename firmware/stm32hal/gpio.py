@@ -20,15 +20,16 @@ class GPIO_InitTypeDef:
 
 
 def HAL_GPIO_Init(port, init: GPIO_InitTypeDef) -> None:
+    """ST's order: OSPEEDR, OTYPER (outputs and AF), PUPDR (not analog), AFR (AF), then MODER."""
     n = init.Pin
-    if init.Mode == GPIO_MODE_AF_PP:
-        reg = "AFR0" if n < 8 else "AFR1"
-        sh = 4 * (n % 8)
-        setattr(port, reg, (getattr(port, reg) & ~(0xF << sh)) | (init.Alternate << sh))
     if init.Mode in (GPIO_MODE_OUTPUT_PP, GPIO_MODE_OUTPUT_OD, GPIO_MODE_AF_PP):
         port.OSPEEDR = (port.OSPEEDR & ~(3 << 2 * n)) | (init.Speed << 2 * n)
         port.OTYPER = (port.OTYPER & ~(1 << n)) | (((init.Mode >> 4) & 1) << n)
     port.PUPDR = (port.PUPDR & ~(3 << 2 * n)) | (init.Pull << 2 * n)
+    if init.Mode == GPIO_MODE_AF_PP:
+        reg = "AFR0" if n < 8 else "AFR1"
+        sh = 4 * (n % 8)
+        setattr(port, reg, (getattr(port, reg) & ~(0xF << sh)) | (init.Alternate << sh))
     port.MODER = (port.MODER & ~(3 << 2 * n)) | ((init.Mode & 3) << 2 * n)
 
 

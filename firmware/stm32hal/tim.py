@@ -151,8 +151,9 @@ def HAL_TIM_PWM_Stop(htim, channel: int) -> None:
 
 def HAL_TIM_Encoder_Init(htim, enc: TIM_Encoder_InitTypeDef) -> None:
     tim = htim.Instance
+    tim.SMCR = tim.SMCR & ~(0x7 | (1 << 16) | (1 << 14))  # reset SMS and ECE before the base config
     TIM_Base_SetConfig(htim)
-    smcr = tim.SMCR & ~(0x7 | (1 << 16) | (1 << 14))  # SMS and ECE cleared
+    smcr = tim.SMCR
     smcr |= enc.EncoderMode
     ccmr1 = tim.CCMR1
     ccmr1 &= ~(0x3 | (0x3 << 8))

@@ -18,7 +18,7 @@ class SysTick(Peripheral):
     REGISTERS = (
         Register("CTRL", 0x0, on_write="_write_ctrl", on_read="_read_ctrl", fields=(
             Field("ENABLE", 0), Field("TICKINT", 1), Field("CLKSOURCE", 2), Field("COUNTFLAG", 16, access="rc_r"))),
-        Register("LOAD", 0x4, fields=(Field("RELOAD", 0, 24),)),
+        Register("LOAD", 0x4, on_write="_write_load", fields=(Field("RELOAD", 0, 24),)),
         Register("VAL", 0x8, on_read="_read_val", on_write="_write_val", fields=(Field("CURRENT", 0, 24),)),
         Register("CALIB", 0xC, fields=(Field("TENMS", 0, 24, access="r"), Field("SKEW", 30, access="r"),
                                        Field("NOREF", 31, access="r"))),
@@ -28,55 +28,67 @@ class SysTick(Peripheral):
         super().__init__(name)
         self.kernel, self.nvic = mcu.kernel, mcu.nvic
         self.core_clock, self.ref_clock = core_clock, ref_clock
-        self._t0 = None      # tick at which counting started (counter held VAL0 then)
+        # the counter held _val0 at the clock edge _t0 (None: stopped), counting with _clk and _load
+        self._t0 = None
         self._val0 = 0
+        self._clk = ref_clock
+        self._load = 0
         self._ev = None
 
-    def _clock(self):
+    def _selected_clock(self):
         return self.core_clock if self.field("CTRL", "CLKSOURCE") else self.ref_clock
 
-    def _cycles(self):
-        return (self.kernel.now - self._t0) // self._clock().period
+    def _state_now(self):
+        """(last clock edge <= now, VAL at that edge) under the configuration in force."""
+        if self._t0 is None:
+            return None, self._val0
+        per = self._clk.period
+        c = (self.kernel.now - self._t0) // per
+        edge = self._t0 + c * per
+        if c <= self._val0:
+            return edge, self._val0 - c
+        # after reaching 0 the next clock reloads LOAD, then it counts down again
+        return edge, self._load - ((c - self._val0 - 1) % (self._load + 1))
 
     def _read_val(self, stored):
-        if self._t0 is None:
-            return self._val0
-        c = self._cycles()
-        load = self.value["LOAD"] & 0xFFFFFF
-        if c == 0:
-            return self._val0
-        # the first clock loads LOAD if VAL was 0, otherwise decrements
-        if self._val0 == 0:
-            return load - ((c - 1) % (load + 1))
-        if c <= self._val0:
-            return self._val0 - c
-        return load - ((c - self._val0 - 1) % (load + 1))
+        return self._state_now()[1]
 
     def _read_ctrl(self, stored):
         return stored
 
-    def _write_val(self, old, new):
-        self._val0 = 0
-        self.clear_bits("CTRL", 1 << 16)
-        self._restart()
-
-    def _write_ctrl(self, old, new):
-        if (old ^ new) & 0b101:
-            if self._t0 is not None:
-                self._val0 = self._read_val(0)
-            self._restart()
-
-    def _restart(self):
+    def _rebase(self, running: bool) -> None:
+        """Freeze the count under the old configuration, then restart it under the new one."""
+        edge, val = self._state_now()
         if self._ev is not None:
             self._ev.cancel()
             self._ev = None
-        if not self.field("CTRL", "ENABLE"):
+        self._val0 = val
+        self._clk = self._selected_clock()
+        self._load = self.value["LOAD"] & 0xFFFFFF
+        if not running:
             self._t0 = None
             return
-        self._t0 = self.kernel.now
-        load = self.value["LOAD"] & 0xFFFFFF
-        first = self._val0 if self._val0 else load + 1
-        self._schedule(self._t0 + first * self._clock().period)
+        per = self._clk.period
+        self._t0 = edge if edge is not None else (self.kernel.now // per) * per
+        first = self._val0 if self._val0 else self._load + 1  # cycles until VAL next reaches 0
+        if self._load or self._val0:
+            self._schedule(self._t0 + first * per)
+
+    def _write_val(self, old, new):
+        self._val0 = 0  # any write clears VAL and COUNTFLAG; the next clock loads LOAD
+        self.clear_bits("CTRL", 1 << 16)
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        if self._t0 is not None:
+            self._t0 = None
+            self._rebase(True)
+
+    def _write_ctrl(self, old, new):
+        self._rebase(bool(new & 1))
+
+    def _write_load(self, old, new):
+        self._rebase(self._t0 is not None)
 
     def _schedule(self, t):
         self._ev = self.kernel.at(t, self._zero)
@@ -85,6 +97,7 @@ class SysTick(Peripheral):
         self.set_bits("CTRL", 1 << 16)
         if self.field("CTRL", "TICKINT"):
             self.nvic.set_pending(SYSTICK)
-        load = self.value["LOAD"] & 0xFFFFFF
-        if load:
-            self._schedule(self.kernel.now + (load + 1) * self._clock().period)
+        if self._load:
+            self._ev = None
+            self._t0, self._val0 = self.kernel.now, 0  # rebase at each wrap: exact and cheap
+            self._schedule(self.kernel.now + (self._load + 1) * self._clk.period)

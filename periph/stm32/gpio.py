@@ -91,7 +91,7 @@ class Gpio(Peripheral):
         for n, net in enumerate(self.pins):
             mode = (moder >> 2 * n) & 3
             pull = (pupdr >> 2 * n) & 3
-            net.pull = {1: 1, 2: 0}.get(pull)
+            net.pull = None if mode == _MODE_ANALOG else {1: 1, 2: 0}.get(pull)  # analog: no pulls
             if pull == 3:
                 raise UnsupportedConfiguration(self.name, "PUPDR", f"PUPDR{n}", 3, "is reserved")
             route = None
@@ -112,9 +112,14 @@ class Gpio(Peripheral):
                     route = self.af_table[key]
             self._route(n, route)
             if route is not None:
-                periph = self.mcu.periph[route[0]]
-                level = periph.oc[route[1]].value
+                level = self._af_level(n, self.mcu.periph[route[0]].oc[route[1]].value)
             net.set(self.name, level)
+
+    def _af_level(self, n, value):
+        """An AF output in open-drain mode (OTYPER=1) drives only 0 and releases on 1."""
+        if value is not None and (self.value["OTYPER"] >> n) & 1:
+            return 0 if value == 0 else None
+        return value
 
     def _route(self, n, route):
         old = self._routes.get(n)
@@ -137,7 +142,7 @@ class Gpio(Peripheral):
 
     def _oc_changed(self, n, route, port):
         if self._routes.get(n) == route:
-            self.pins[n].set(self.name, port.value)
+            self.pins[n].set(self.name, self._af_level(n, port.value))
 
     def _pin_changed(self, n, route, net):
         if self._routes.get(n) == route:

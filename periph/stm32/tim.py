@@ -147,6 +147,7 @@ def _registers(bits: int, arr_reset: int) -> tuple:
 
 class Tim(EncoderStage, Peripheral):
     SIZE = 0x400
+    ACCESS_SIZES = (2, 4)  # RM: timer registers take half-word or word accesses
 
     def __init__(self, name: str, mcu, clock, irqs: dict, counter_bits: int = 16,
                  advanced: bool = False, arr_reset: int = 0):
@@ -437,6 +438,10 @@ class Tim(EncoderStage, Peripheral):
         self._flag_down = cms != 2
         if cms == 0 and not self._sms:
             self._up = not new & DIR  # DIR is read-only in centre-aligned and encoder modes (§2.7)
+        if old & ARPE and not new & ARPE:
+            # [INF] RM: preload contents reach the shadow "permanently" while ARPE=0, so clearing
+            # ARPE with a preload pending makes it effective at once
+            self._arr = self.value["ARR"]
         self._plan()
 
     def _write_smcr(self, old: int, new: int) -> None:
@@ -496,7 +501,8 @@ class Tim(EncoderStage, Peripheral):
 
     def _write_cnt(self, old: int, new: int) -> None:
         self._sync()
-        self._cnt = new & self.mask & 0x7FFFFFFF if self.value["CR1"] & UIFREMAP else new & self.mask
+        # with UIFREMAP bit 31 reads as UIFCPY, but a write still reaches the counter (§1.2)
+        self._cnt = new & self.mask
         self._plan()
 
     def _read_cnt(self, stored: int) -> int:
@@ -559,6 +565,9 @@ class Tim(EncoderStage, Peripheral):
                 self._mode[ch], self._ocpe[ch], self._icf[ch], self._icpsc[ch] = s
             self._refuse(reg, old, "CCxS", new & 0x303, "(input capture) is not modelled outside encoder mode")
         self._sync()
+        for (ch, *_), (_, pe_was, *_r) in zip(decoded, saved):
+            if pe_was and not self._ocpe[ch]:  # [INF] as ARPE: OCxPE=0 transfers permanently
+                self._ccr[ch] = self.value[f"CCR{ch}"]
         self._decode_enables()
         self._plan()
 
