@@ -41,6 +41,26 @@ class _Req:
         yield self
 
 
+class Signal:
+    """A notification a peripheral model fires when a state that firmware may be polling changes
+    (an ADC conversion completing, a bus byte done). Busy-wait loops in firmware ports
+    ``await rtos.wait_signal(sig)`` between polls instead of spinning; it carries no data: the
+    firmware still reads the registers to see what changed."""
+
+    __slots__ = ("_waiters",)
+
+    def __init__(self):
+        self._waiters = []
+
+    def fire(self) -> None:
+        waiters, self._waiters = self._waiters, []
+        for fn in waiters:
+            fn()
+
+    def _wait(self, fn) -> None:
+        self._waiters.append(fn)
+
+
 class Context:
     """Something that occupies the CPU: a task or an exception handler."""
 
@@ -232,6 +252,11 @@ class Rtos:
         """
         return _Req("wfi", None)
 
+    @staticmethod
+    def wait_signal(signal: Signal) -> _Req:
+        """Block until ``signal`` fires (a busy-wait on a peripheral flag, see :class:`Signal`)."""
+        return _Req("signal", signal)
+
     def interrupt_done(self) -> None:
         for t in self.tasks:
             if t.state == "blocked" and t.wake_tick == "wfi":
@@ -282,6 +307,19 @@ class Rtos:
         if req.kind == "cycles":
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
             self.cpu._busy(task, self.cpu.clock.cycles(req.arg), lambda: self._step(task))
+        elif req.kind == "signal":
+            task.state, task.wake_tick = "blocked", "signal"
+            task.on_done = lambda: self._step(task)
+            task.remaining = 0
+
+            def wake(task=task):
+                if task.state == "blocked" and task.wake_tick == "signal":
+                    task.state, task.wake_tick = "ready", None
+                    if not self.cpu.stack:
+                        self.reschedule()
+                        self.cpu._resume(self.current)
+            req.arg._wait(wake)
+            self._switch()
         elif req.kind == "wfi":
             task.state, task.wake_tick = "blocked", "wfi"
             task.on_done = lambda: self._step(task)

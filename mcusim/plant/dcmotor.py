@@ -49,6 +49,7 @@ from dataclasses import dataclass, fields, replace
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from . import pwl
+from .presets import motor_preset
 
 INF = math.inf
 
@@ -123,8 +124,10 @@ class DcMotor:
     """A brushed DC motor with gearbox and load.
 
     ``DcMotor(kernel, name="motor1", params=None, current=0.0, speed=0.0, angle=0.0,
-    horizon=50e-6, max_horizon=5e-3, **overrides)`` where ``overrides`` are :class:`MotorParams`
-    names (``R, L, K, J, tau_c, b, tau_s, gear_ratio, efficiency, load_inertia, load_torque``).
+    horizon=50e-6, max_horizon=5e-3, preset=None, **overrides)`` where ``overrides`` are
+    :class:`MotorParams` names (``R, L, K, J, tau_c, b, tau_s, gear_ratio, efficiency, load_inertia,
+    load_torque``). ``preset`` names a set of :mod:`mcusim.plant.presets` (e.g.
+    ``"openrover-100w-50"``) used as the base under ``params`` (a dict) and ``overrides``.
 
     Observers (evaluated at ``kernel.now``): ``current`` (A), ``speed`` (motor shaft rad/s),
     ``angle`` (motor shaft rad), ``output_angle``/``output_speed`` (θ/N, ω/N), ``peak_current``,
@@ -142,11 +145,19 @@ class DcMotor:
 
     def __init__(self, kernel, name: str = "motor1", params: MotorParams | dict | None = None, *,
                  current: float = 0.0, speed: float = 0.0, angle: float = 0.0,
-                 horizon: float = 50e-6, max_horizon: float = 5e-3, **overrides):
+                 horizon: float = 50e-6, max_horizon: float = 5e-3, preset: str | None = None,
+                 **overrides):
         self.kernel = kernel
         self.name = name
+        base = None
+        if preset is not None:      # named set (mcusim.plant.presets) under params and overrides
+            if isinstance(params, MotorParams):
+                raise ConfigError(f"{name}: give either preset={preset!r} or a MotorParams, not both")
+            base = MotorParams.from_mapping(motor_preset(preset))
         if isinstance(params, dict):
-            params = MotorParams.from_mapping(params)
+            params = MotorParams.from_mapping(params, base=base)
+        elif params is None:
+            params = base
         self.params = MotorParams.from_mapping(overrides, base=params)
         self._fs = kernel.timebase.base_hz
         self._inv_hz = 1.0 / self._fs

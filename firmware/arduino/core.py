@@ -1,0 +1,203 @@
+"""The Arduino AVR core (ArduinoCore-avr 1.8.x: wiring.c, wiring_digital.c, wiring_analog.c,
+WInterrupts.c) for the ATmega328P at 16 MHz, over the simulated registers.
+
+Function names are the core's in snake_case. Deviations, as the simulation needs them:
+
+* ``analog_read`` busy-waits on ADSC like the C; it is a coroutine (``await core.analog_read(A0)``)
+  because simulated time passes while it spins. The wait blocks on the ADC's completion signal
+  instead of simulating each pass of the loop.
+* ``delay_microseconds`` (synchronous in the libraries that call it) adds its cycles to a debt the
+  running sketch pays at its next ``await core.pay_debt()`` (the module's loop does this each pass).
+* ``attach_interrupt`` takes an optional declared cost of the user function in cycles (the
+  trampoline in WInterrupts.c is part of the figure; the PJRC Encoder's measured 148 cycles is
+  the whole ISR).
+* Timer2 is not modelled, so ``init`` leaves it alone (the core would start it in phase-correct
+  PWM mode for pins 3 and 11), and ``analog_write`` refuses pins 3/11 and Timer0's pins 5/6.
+"""
+
+from __future__ import annotations
+
+from firmware.arduino.core_api import CHANGE, FALLING, HIGH, INPUT, INPUT_PULLUP, LOW, NOT_AN_INTERRUPT, OUTPUT, RISING  # noqa: F401
+from mcusim.errors import ConfigError
+
+# data-space addresses (iom328p.h)
+PINB, DDRB, PORTB = 0x23, 0x24, 0x25
+PINC, DDRC, PORTC = 0x26, 0x27, 0x28
+PIND, DDRD, PORTD = 0x29, 0x2A, 0x2B
+TIFR0, EIFR, EIMSK, SREG = 0x35, 0x3C, 0x3D, 0x5F
+TCCR0A, TCCR0B, TCNT0, TIMSK0 = 0x44, 0x45, 0x46, 0x6E
+EICRA = 0x69
+TCCR1A, TCCR1B = 0x80, 0x81
+OCR1AL, OCR1AH, OCR1BL, OCR1BH = 0x88, 0x89, 0x8A, 0x8B
+ADCL, ADCH, ADCSRA, ADMUX = 0x78, 0x79, 0x7A, 0x7C
+TIMER0_OVF_vect, INT0_vect, INT1_vect = 16, 1, 2
+
+A0, A1, A2, A3, A4, A5, A6, A7 = range(14, 22)
+# pins_arduino.h (standard / eightanaloginputs): digital pin -> (port, bit)
+_PORTS = {"B": (PINB, DDRB, PORTB), "C": (PINC, DDRC, PORTC), "D": (PIND, DDRD, PORTD)}
+_PIN = {**{d: ("D", d) for d in range(8)}, **{d: ("B", d - 8) for d in range(8, 14)},
+        **{d: ("C", d - 14) for d in range(14, 20)}}
+_PWM_TIMER1 = {9: 1 << 7, 10: 1 << 5}  # COM1A1, COM1B1
+
+MILLIS_INC, FRACT_INC, FRACT_MAX = 1, 3, 125  # 16 MHz: 1024 µs per Timer0 overflow
+TIMER0_OVF_CYCLES = 80   # declared cost of ISR(TIMER0_OVF_vect), ≈ 5 µs (reference sheet §3)
+INT_TRAMPOLINE_CYCLES = 60  # WInterrupts.c ISR + call of the user function, when none is declared
+
+
+class ArduinoCore:
+    def __init__(self, mcu, adc=None):
+        self.mcu, self.bus, self.cpu, self.rtos, self.irq = mcu, mcu.bus, mcu.cpu, mcu.rtos, mcu.irq
+        self.adc = adc
+        self.timer0_overflow_count = 0
+        self.timer0_millis = 0
+        self.timer0_fract = 0
+        self.int_func = [None, None]
+        self.analog_reference = 1  # DEFAULT: AVcc
+        self.debt_cycles = 0
+        self.cpu.vector(TIMER0_OVF_vect, self.timer0_ovf_isr, cost=TIMER0_OVF_CYCLES)
+
+    # --- registers --------------------------------------------------------------------------
+    def _r(self, a):
+        return self.bus.read8(a)
+
+    def _w(self, a, v):
+        self.bus.write8(a, v & 0xFF)
+
+    def cli(self):
+        self.irq.set_i(False)
+
+    def sei(self):
+        self.irq.set_i(True)
+
+    no_interrupts, interrupts = cli, sei
+
+    # --- wiring.c ---------------------------------------------------------------------------
+    def init(self) -> None:
+        self.sei()
+        self._w(TCCR0A, self._r(TCCR0A) | 0b11)          # WGM01 | WGM00: fast PWM
+        self._w(TCCR0B, self._r(TCCR0B) | 0b011)         # CS01 | CS00: clk/64
+        self._w(TIMSK0, self._r(TIMSK0) | 1)             # TOIE0
+        self._w(TCCR1B, 0)
+        self._w(TCCR1B, self._r(TCCR1B) | 0b011)         # CS11 | CS10: clk/64
+        self._w(TCCR1A, self._r(TCCR1A) | 1)             # WGM10: 8-bit phase-correct PWM
+        if self.adc is not None:
+            self._w(ADCSRA, self._r(ADCSRA) | 0b111)     # ADPS2:0 = clk/128
+            self._w(ADCSRA, self._r(ADCSRA) | 0x80)      # ADEN
+
+    def timer0_ovf_isr(self) -> None:
+        m = self.timer0_millis + MILLIS_INC
+        f = self.timer0_fract + FRACT_INC
+        if f >= FRACT_MAX:
+            f -= FRACT_MAX
+            m += 1
+        self.timer0_fract = f
+        self.timer0_millis = m & 0xFFFFFFFF
+        self.timer0_overflow_count = (self.timer0_overflow_count + 1) & 0xFFFFFFFF
+
+    def millis(self) -> int:
+        old = self._r(SREG)
+        self.cli()
+        m = self.timer0_millis
+        self._w(SREG, old)
+        return m
+
+    def micros(self) -> int:
+        old = self._r(SREG)
+        self.cli()
+        m = self.timer0_overflow_count
+        t = self._r(TCNT0)
+        if self._r(TIFR0) & 1 and t < 255:
+            m += 1
+        self._w(SREG, old)
+        return (((m << 8) + t) * 4) & 0xFFFFFFFF
+
+    def delay_microseconds(self, us: int) -> None:
+        self.debt_cycles += 16 * us  # the C loop burns 4 cycles per quarter microsecond
+
+    async def pay_debt(self) -> None:
+        if self.debt_cycles:
+            n, self.debt_cycles = self.debt_cycles, 0
+            await self.cpu.cycles(n)
+
+    # --- wiring_digital.c -------------------------------------------------------------------
+    def _port(self, pin):
+        try:
+            port, bit = _PIN[pin]
+        except KeyError:
+            raise ConfigError(f"pin {pin} has no digital function on the ATmega328P Pro Mini") from None
+        return _PORTS[port], 1 << bit
+
+    def pin_mode(self, pin: int, mode: int) -> None:
+        (_, ddr, port), bit = self._port(pin)
+        old = self._r(SREG)
+        self.cli()
+        if mode == INPUT:
+            self._w(ddr, self._r(ddr) & ~bit)
+            self._w(port, self._r(port) & ~bit)
+        elif mode == INPUT_PULLUP:
+            self._w(ddr, self._r(ddr) & ~bit)
+            self._w(port, self._r(port) | bit)
+        else:
+            self._w(ddr, self._r(ddr) | bit)
+        self._w(SREG, old)
+
+    def _turn_off_pwm(self, pin: int) -> None:
+        com = _PWM_TIMER1.get(pin)
+        if com is not None:
+            self._w(TCCR1A, self._r(TCCR1A) & ~com)
+
+    def digital_write(self, pin: int, val: int) -> None:
+        (_, _, port), bit = self._port(pin)
+        self._turn_off_pwm(pin)  # as the core does: digitalWrite on a PWM pin disconnects the timer
+        old = self._r(SREG)
+        self.cli()
+        self._w(port, (self._r(port) | bit) if val else (self._r(port) & ~bit))
+        self._w(SREG, old)
+
+    def digital_read(self, pin: int) -> int:
+        (pin_reg, _, _), bit = self._port(pin)
+        self._turn_off_pwm(pin)
+        return HIGH if self._r(pin_reg) & bit else LOW
+
+    # --- wiring_analog.c --------------------------------------------------------------------
+    def analog_write(self, pin: int, val: int) -> None:
+        self.pin_mode(pin, OUTPUT)
+        if val == 0:
+            self.digital_write(pin, LOW)
+        elif val == 255:
+            self.digital_write(pin, HIGH)
+        elif pin in _PWM_TIMER1:
+            self._w(TCCR1A, self._r(TCCR1A) | _PWM_TIMER1[pin])
+            lo, hi = (OCR1AL, OCR1AH) if pin == 9 else (OCR1BL, OCR1BH)
+            self._w(hi, 0)
+            self._w(lo, val)
+        else:
+            raise ConfigError(f"analogWrite({pin}): only pins 9 and 10 (Timer1) are modelled")
+
+    async def analog_read(self, pin: int) -> int:
+        if pin >= 14:
+            pin -= 14
+        self._w(ADMUX, (self.analog_reference << 6) | (pin & 0x07))
+        self._w(ADCSRA, self._r(ADCSRA) | (1 << 6))      # ADSC
+        while self._r(ADCSRA) & (1 << 6):                 # while (bit_is_set(ADCSRA, ADSC));
+            await self.rtos.wait_signal(self.adc.done)
+        low = self._r(ADCL)
+        high = self._r(ADCH)
+        return (high << 8) | low
+
+    # --- WInterrupts.c ----------------------------------------------------------------------
+    def digital_pin_to_interrupt(self, pin: int) -> int:
+        return {2: 0, 3: 1}.get(pin, NOT_AN_INTERRUPT)
+
+    def attach_interrupt(self, n: int, fn, mode: int, cycles: int | None = None) -> None:
+        if n not in (0, 1):
+            return
+        self.int_func[n] = fn
+        cost = cycles if cycles is not None else getattr(fn, "ISR_CYCLES", INT_TRAMPOLINE_CYCLES)
+        self.cpu.vector((INT0_vect, INT1_vect)[n], lambda: self.int_func[n](), cost=cost)
+        self._w(EICRA, (self._r(EICRA) & ~(3 << 2 * n)) | (mode << 2 * n))
+        self._w(EIMSK, self._r(EIMSK) | (1 << n))
+
+    def detach_interrupt(self, n: int) -> None:
+        self._w(EIMSK, self._r(EIMSK) & ~(1 << n))
+        self.int_func[n] = None

@@ -1,0 +1,214 @@
+"""The OpenRover motor-controller module sketch (Arduino Pro Mini, ATmega328P at 16 MHz).
+
+Hardware: IBT-2 (two BTS7960 half-bridges) with RPWM on D9 and LPWM on D10 driven by TimerOne at
+20 kHz; R_EN/L_EN tied high; the current-sense outputs R_IS on A0 and L_IS on A1; the motor's AMT10
+encoder (512 PPR, 2048 counts per motor turn) on D2/D3 read by the PJRC Encoder library; I2C slave
+on A4/A5 (Wire) with the register map of :mod:`firmware.openrover_mcm.protocol`.
+
+loop(): every SAMPLE_MS (PID_v1's sample time) the velocity in counts/s is measured from the
+encoder, PID_v1 computes a duty in [-1024, 1024] (TimerOne units), the sign picks RPWM or LPWM;
+both IS pins are read and the current of the driving half-bridge is converted to mA; charge is
+integrated; a stall (|duty| above STALL_DUTY while the speed stays below STALL_SPEED for STALL_MS)
+stops the motor and raises the STALL fault, cleared over I2C.
+
+The paper gives the structure, not the figures; the constants below are ours (overridable as
+``firmware.<name>``). Between passes that find nothing to do, the loop waits for the next
+interrupt (its state only changes through the Timer0, encoder and TWI interrupts).
+"""
+
+from __future__ import annotations
+
+import struct
+
+from firmware.arduino.core import A0, A1, ArduinoCore
+from firmware.arduino.encoder import Encoder
+from firmware.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
+from firmware.arduino.timerone import TimerOne
+from firmware.arduino.wire import TwoWire
+from firmware.openrover_mcm import protocol as P
+from mcusim.errors import ConfigError
+
+DEFAULTS = {
+    "i2c_address": P.DEFAULT_ADDRESS,
+    "sample_ms": 10,
+    "kp": 0.02, "ki": 0.2, "kd": 0.0,   # duty units (1/1024) per count/s
+    "stall_duty": 300,                  # |duty| above this ...
+    "stall_speed": 200,                 # ... with |velocity| below this (counts/s) ...
+    "stall_ms": 500,                    # ... for this long is a stall
+    "r_is": 1000.0, "k_ilis": 8500.0,   # IBT-2 current sense: I = V_IS / R_IS · k_ILIS
+    "avcc": 5.0,
+    "wire_variant": "fixed",
+    "cycles_loop_work": 3000,           # declared: soft-float PID_v1 + bookkeeping per sample
+    "cycles_loop_idle": 40,             # declared: one pass of loop() with nothing to do
+}
+RPWM_PIN, LPWM_PIN, ENC_A_PIN, ENC_B_PIN = 9, 10, 2, 3
+
+
+class OpenRoverMcm:
+    def __init__(self, mcu, adc=None, **params):
+        unknown = set(params) - set(DEFAULTS)
+        if unknown:
+            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
+                              f"(known: {', '.join(sorted(DEFAULTS))})")
+        self.p = {**DEFAULTS, **params}
+        self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
+        adc = adc if adc is not None else mcu.periph.get("ADC")
+        self.core = ArduinoCore(mcu, adc=adc)
+        # globals, constructed before init() as C++ globals are
+        self.encoder = Encoder(self.core, ENC_A_PIN, ENC_B_PIN)
+        self.timer1 = TimerOne(mcu.bus, self.core)
+        self.wire = TwoWire(self.core, variant=self.p["wire_variant"])
+        self.pid = PID(self.p["kp"], self.p["ki"], self.p["kd"], direction=DIRECT, millis=self.core.millis)
+        self.velocity = 0            # counts/s
+        self.setpoint = 0            # counts/s
+        self.duty = 0
+        self.current_ma = 0
+        self.charge_mas = 0.0        # mA·s
+        self.status = 0
+        self.error = P.ERR_NONE
+        self.pointer = 0
+        self._stall_since = None
+        self.rtos.create_task("arduino", self.main(), priority=1)
+
+    # --- main() of the Arduino core: init(); setup(); for (;;) loop(); ---------------------------
+    async def main(self):
+        self.core.init()
+        self.setup()
+        await self.core.pay_debt()
+        while True:
+            worked = await self.loop()
+            await self.cpu.cycles(self.p["cycles_loop_work"] if worked else self.p["cycles_loop_idle"])
+            await self.core.pay_debt()
+            if not worked:
+                await self.rtos.wait_for_interrupt()
+
+    def setup(self) -> None:
+        self.timer1.initialize(50)                 # 50 µs: 20 kHz
+        self.timer1.pwm(RPWM_PIN, 0)
+        self.timer1.pwm(LPWM_PIN, 0)
+        self.wire.begin(self.p["i2c_address"])
+        self.wire.on_receive(self.receive_event)
+        self.wire.on_request(self.request_event)
+        self.pid.set_output_limits(-1024, 1024)
+        self.pid.set_sample_time(self.p["sample_ms"])
+        self.pid.setpoint = 0.0
+        self.pid.set_mode(AUTOMATIC)
+        self.status |= P.ST_PID_ENABLED
+        self._last_ms = self.core.millis()
+        self._last_count = self.encoder.read()
+
+    async def loop(self) -> bool:
+        now = self.core.millis()
+        dt = (now - self._last_ms) & 0xFFFFFFFF
+        if dt < self.p["sample_ms"]:
+            return False
+        count = self.encoder.read()
+        self.velocity = (count - self._last_count) * 1000 // dt
+        self._last_count, self._last_ms = count, now
+        self.pid.input = float(self.velocity)
+        self.pid.setpoint = float(self.setpoint)
+        if self.pid.compute():
+            self.set_duty(int(self.pid.output))
+        await self.measure_current(dt)
+        self.check_stall(dt)
+        return True
+
+    def set_duty(self, duty: int) -> None:
+        self.duty = duty
+        if duty >= 0:
+            self.timer1.set_pwm_duty(LPWM_PIN, 0)
+            self.timer1.set_pwm_duty(RPWM_PIN, duty)
+        else:
+            self.timer1.set_pwm_duty(RPWM_PIN, 0)
+            self.timer1.set_pwm_duty(LPWM_PIN, -duty)
+
+    async def measure_current(self, dt_ms: int) -> None:
+        r = await self.core.analog_read(A0)
+        l_ = await self.core.analog_read(A1)
+        volts = (r if self.duty >= 0 else l_) * self.p["avcc"] / 1024
+        ma = volts / self.p["r_is"] * self.p["k_ilis"] * 1000
+        self.current_ma = int(ma) if self.duty >= 0 else -int(ma)
+        self.charge_mas += abs(ma) * dt_ms / 1000
+
+    def check_stall(self, dt_ms: int) -> None:
+        if abs(self.duty) > self.p["stall_duty"] and abs(self.velocity) < self.p["stall_speed"]:
+            if self._stall_since is None:
+                self._stall_since = 0
+            self._stall_since += dt_ms
+            if self._stall_since >= self.p["stall_ms"]:
+                self.stop_motor()
+                self.status |= P.ST_STALL
+        else:
+            self._stall_since = None
+        self.status = (self.status | P.ST_MOVING) if self.velocity else (self.status & ~P.ST_MOVING)
+
+    def stop_motor(self) -> None:
+        self.pid.set_mode(MANUAL)
+        self.pid.output = 0.0
+        self.set_duty(0)
+        self.status &= ~P.ST_PID_ENABLED
+
+    # --- I2C (called from the TWI ISR, as Wire's callbacks are) -------------------------------------
+    def receive_event(self, n: int) -> None:
+        data = bytes(self.wire.read() for _ in range(n))
+        if not data:
+            return
+        reg_addr, payload = data[0], data[1:]
+        self.pointer = reg_addr
+        if not payload:
+            if reg_addr >= P.MAP_SIZE:
+                self._fail(P.ERR_UNKNOWN_REGISTER)
+            return
+        reg = P.BY_ADDR.get(reg_addr)
+        if reg is None:
+            self._fail(P.ERR_UNKNOWN_REGISTER)
+        elif not reg.writable:
+            self._fail(P.ERR_READ_ONLY)
+        elif len(payload) < reg.size:
+            self._fail(P.ERR_SHORT_WRITE)
+        else:
+            self.write_register(reg.name, struct.unpack("<" + reg.fmt, payload[: reg.size])[0])
+
+    def _fail(self, code: int) -> None:
+        self.error = code
+        self.status |= P.ST_ERROR
+
+    def write_register(self, name: str, value) -> None:
+        if name == "SETPOINT":
+            self.setpoint = value
+        elif name == "CONTROL":
+            if value & P.CTL_CLEAR_FAULTS:
+                self.status &= ~(P.ST_STALL | P.ST_OVERCURRENT | P.ST_ERROR)
+                self.error = P.ERR_NONE
+                self._stall_since = None
+            if value & P.CTL_PID_ENABLE and not self.status & P.ST_STALL:
+                self.pid.set_mode(AUTOMATIC)
+                self.status |= P.ST_PID_ENABLED
+            elif not value & P.CTL_PID_ENABLE:
+                self.stop_motor()
+        elif name in ("KP", "KI", "KD"):
+            kp, ki, kd = self.pid.get_kp(), self.pid.get_ki(), self.pid.get_kd()
+            kp, ki, kd = (value if name == "KP" else kp), (value if name == "KI" else ki), (value if name == "KD" else kd)
+            self.pid.set_tunings(kp, ki, kd)
+
+    def register_image(self) -> bytearray:
+        img = bytearray(P.MAP_SIZE)
+        values = {
+            "WHO_AM_I": (P.WHO_AM_I_VALUE,), "VERSION": P.FW_VERSION, "STATUS": (self.status,),
+            "CONTROL": (1 if self.status & P.ST_PID_ENABLED else 0,), "SETPOINT": (self.setpoint,),
+            "POSITION": (self.encoder.read() & 0xFFFF,), "CURRENT": (max(-32768, min(32767, self.current_ma)),),
+            "CHARGE": (min(int(self.charge_mas), 0xFFFFFFFF),), "KP": (float(self.pid.get_kp()),),
+            "KI": (float(self.pid.get_ki()),), "KD": (float(self.pid.get_kd()),),
+            "VELOCITY": (self.velocity,), "ERROR": (self.error,),
+        }
+        for reg in P.REGISTERS:
+            img[reg.addr: reg.addr + reg.size] = struct.pack("<" + reg.fmt, *values[reg.name])
+        return img
+
+    def request_event(self) -> None:
+        if self.pointer >= P.MAP_SIZE:
+            self._fail(P.ERR_UNKNOWN_REGISTER)
+            self.wire.write(b"\xff")
+            return
+        img = self.register_image()
+        self.wire.write(bytes(img[self.pointer: self.pointer + 32]))

@@ -1,0 +1,319 @@
+"""IBT-2 motor driver board: two Infineon BTS7960 half bridges (reference/plants.md §2.1, §2.3).
+
+Wiring: half bridge R (pins RPWM = IN, R_EN = INH, R_IS) drives M+, half bridge L (LPWM, L_EN,
+L_IS) drives M−. The motor current i flows M+ -> motor -> M− (i > 0 for RPWM=1, LPWM=0).
+
+Per half bridge (INH, IN -> leg): INH=0 -> Z (both switches off: body diodes); INH=1, IN=1 -> H
+(high side on); INH=1, IN=0 -> L (low side on). So with both EN high: 10 forward drive, 01
+reverse drive, 00 brake low, 11 brake high; both EN low: coast (fast decay, then discontinuous
+conduction). ``r_en``/``l_en`` may be ``None``: INH tied high (the usual OpenRover/Arduino wiring).
+
+Leg model as :mod:`mcusim.plant.l6206` (§2.1; current j out of the leg): H: v = Vs − R_HS·j;
+L: v = −R_LS·j; Z: v = −(V_D + r_D·j) for j > 0 (low-side diode), Vs + V_D − r_D·j for j < 0
+(high-side diode). The bridge hands ``(V⁺, V⁻, R_br, has_diode)`` to the motor.
+
+Current limitation (datasheet §4.3.7–4.3.9 as quoted in §2.3 / §5.2 item 7): each switch senses
+its own *forward* current — high side: current out of the leg, j > I_CLH; low side: current into
+the leg, −j > I_CLL (reverse conduction is not detected [I]). On detection the half bridge is in
+current-limitation fault for ``t_CLS`` (rounded to the nearest base tick): the detecting switch is
+turned off and, by default (``cl_action="other"``), the *other* switch of that half bridge is
+turned on, ignoring IN [S/I: the datasheet's current-limitation text as remembered, and the truth
+table of the sibling NovalithIC BTM7752G: "short circuit in HS detected -> HS OFF, LS ON"; the
+sheet itself only says "the switch is shut off for t_CLS"]. ``cl_action="off"`` turns both switches
+off instead (leg Z). INH low still turns the half bridge off during the fault. After t_CLS the
+half bridge follows IN again; if the current is still above the limit it trips again at once.
+With an inductive load this is the switched-mode current limit of §2.3. The detection is a guard
+on the motor's exact segment (located to the first base tick with |i| above the limit); a state
+change of IN/INH or a re-enable checks the limit at the same tick.
+
+IS outputs (``is_r``, ``is_l``: :class:`~mcusim.signals.AnalogNet` with ``.source(t_ticks)``):
+I_IS = max(j, 0)/k_ILIS + I_ISH while that half bridge's high side is on (forward current only),
+capped at I_IS(lim); I_ISL otherwise; I_IS(lim) during a current-limitation fault. V_IS =
+min(I_IS·R_IS, Vcc). The current comes from ``motor.state_at(t)`` (the exact closed form at tick
+t), the switch state from a short history of this bridge's state changes, so an ADC that samples
+IS at a tick inside the PWM period sees the chopped waveform exactly. At a tick where the state
+changed, the state after the change is used.
+
+Not modelled: dead time and switching delays/slew rate (R_SR), the thermal shutdown (T_jSD with
+latch reset by an INH low pulse — omitted), under/over-voltage lock-out, the temperature and
+supply dependence of R_ON and of the current-limit levels, the k_ILIS spread (a parameter, typ.
+8500), IS settling time, any RC filter on the board's IS lines, supply ripple (Vs is an ideal
+source; see §4.1 for the battery).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, replace
+
+from ..errors import ConfigError
+from ..kernel import PRIO_PLANT
+from ..signals import AnalogNet, Net
+from .dcmotor import _check_overrides
+
+
+@dataclass(frozen=True)
+class Bts7960Params:
+    Vs: float = 12.0          # supply, V (ideal source)                           [given]
+    R_HS: float = 7e-3        # high-side R_ON, Ω (25 °C typ; max 9, 150 °C 10/12.5) [V]
+    R_LS: float = 9e-3        # low-side R_ON, Ω (25 °C typ; max 12, 150 °C 14/18)   [V]
+    V_D: float = 0.8          # reverse-diode forward voltage, V (25 °C typ, 9 A)  [V]
+    r_D: float = 0.0          # diode slope, Ω (not in the sheet)                  [I]
+    I_CLH: float = 60.0       # high-side current-limit detection, A (44/60/80)    [V]
+    I_CLL: float = 43.0       # low-side current-limit detection, A (34/43/61)     [V]
+    t_CLS: float = 115e-6     # current-limit shut-off time, s (70/115/210 µs)     [V]
+    k_ILIS: float = 8500.0    # current sense ratio I_L/I_IS (typ; spread 3000–14000) [V]
+    R_IS: float = 1000.0      # IS resistor on the IBT-2, Ω: UNVERIFIED (assumed)  [S]
+    I_IS_lim: float = 4.5e-3  # max analog sense current = fault current, A (4/4.5/7 mA) [V]
+    I_ISL: float = 0.0        # IS leakage with IN or INH = 0, A (sheet: ≤ 1 µA)   [V max]
+    I_ISH: float = 0.0        # IS offset with the high side on at I_L = 0, A (≤ 200 µA) [V max]
+    Vcc: float = 5.0          # logic supply: IS voltage clamp, V                  [S: IBT-2 VCC 5 V]
+
+    def __post_init__(self):
+        for name in ("I_CLH", "I_CLL", "t_CLS", "k_ILIS", "R_IS", "Vcc"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"bts7960 parameter {name} = {getattr(self, name)} must be positive")
+        for name in ("Vs", "R_HS", "R_LS", "V_D", "r_D", "I_IS_lim", "I_ISL", "I_ISH"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"bts7960 parameter {name} = {getattr(self, name)} must not be negative")
+
+    @classmethod
+    def from_mapping(cls, mapping: dict, base: Bts7960Params | None = None) -> Bts7960Params:
+        return replace(base or cls(), **_check_overrides(cls, dict(mapping), "bts7960"))
+
+
+_SIDES = ("R", "L")
+_HISTORY = 32      # state changes remembered for IS evaluation at past ticks
+
+
+class _Half:
+    """One BTS7960: IN, INH nets, and the current-limitation state."""
+
+    __slots__ = ("en", "fault", "inp", "release_ev", "tripped", "trips")
+
+    def __init__(self, inp: Net, en: Net | None):
+        self.inp, self.en = inp, en
+        self.fault = False
+        self.tripped = None      # "H" or "L": the switch that detected the over-current
+        self.trips = 0
+        self.release_ev = None
+
+
+class Bts7960Bridge:
+    """``Bts7960Bridge(kernel, motor, rpwm, lpwm, r_en=None, l_en=None, name="ibt2", *, params=None,
+    is_r=None, is_l=None, cl_action="other", **overrides)``.
+
+    ``rpwm``, ``lpwm`` (IN), ``r_en``, ``l_en`` (INH; ``None`` = tied high): :class:`Net` inputs.
+    ``overrides`` are :class:`Bts7960Params` names (``Vs, R_HS, R_LS, V_D, r_D, I_CLH, I_CLL, t_CLS,
+    k_ILIS, R_IS, I_IS_lim, I_ISL, I_ISH, Vcc``). ``is_r``/``is_l``: optional
+    :class:`AnalogNet` s to drive (created as ``<name>.R_IS`` / ``<name>.L_IS`` otherwise).
+
+    Attributes: ``legs`` (("H"|"L"|"Z", "H"|"L"|"Z") for (M+, M−) now), ``fault`` (either half
+    bridge in current limitation), ``fault_r``/``fault_l``, ``cl_trips`` (total trips),
+    ``cl_trips_r``/``cl_trips_l``, ``trip_log`` ((tick, side, "H"|"L") of the latest 256 trips),
+    ``cls_ticks`` (t_CLS in base ticks), ``is_r``/``is_l``
+    (AnalogNets), ``params``; ``is_voltage(side, tick=None)`` with side "R"/"L".
+    """
+
+    def __init__(self, kernel, motor, rpwm: Net, lpwm: Net, r_en: Net | None = None,
+                 l_en: Net | None = None, name: str = "ibt2", *, params: Bts7960Params | dict | None = None,
+                 is_r: AnalogNet | None = None, is_l: AnalogNet | None = None, cl_action: str = "other",
+                 **overrides):
+        self.kernel, self.motor, self.name = kernel, motor, name
+        if isinstance(params, dict):
+            params = Bts7960Params.from_mapping(params)
+        self.params = Bts7960Params.from_mapping(overrides, base=params)
+        if cl_action not in ("other", "off"):
+            raise ConfigError(f"{name}: cl_action = {cl_action!r} must be 'other' or 'off'")
+        self.cl_action = cl_action
+        self.rpwm, self.lpwm, self.r_en, self.l_en = rpwm, lpwm, r_en, l_en
+        self._half = {"R": _Half(rpwm, r_en), "L": _Half(lpwm, l_en)}
+        self.cls_ticks = max(1, round(self.params.t_CLS * kernel.timebase.base_hz))
+        self.is_r = is_r if is_r is not None else AnalogNet(f"{name}.R_IS")
+        self.is_l = is_l if is_l is not None else AnalogNet(f"{name}.L_IS")
+        self.is_r.source = lambda t=None: self.is_voltage("R", t)
+        self.is_l.source = lambda t=None: self.is_voltage("L", t)
+        self._legs_seen = None
+        self._drive_cache = {}
+        self._hist = deque(maxlen=_HISTORY)
+        self.trip_log = deque(maxlen=256)   # (tick, side, switch) of the latest trips
+        self._record()
+        for net in (rpwm, lpwm, r_en, l_en):
+            if net is not None:
+                net.listen(self._on_pin)
+        motor.add_guard_provider(self)
+        motor.attach_driver(self)
+
+    # ---- state ---------------------------------------------------------------------------------
+    def _leg_of(self, side: str) -> str:
+        h = self._half[side]
+        if h.en is not None and not h.en.level:
+            return "Z"
+        if h.fault:
+            if self.cl_action == "off":
+                return "Z"
+            return "L" if h.tripped == "H" else "H"
+        return "H" if h.inp.level else "L"
+
+    @property
+    def legs(self):
+        return (self._leg_of("R"), self._leg_of("L"))
+
+    @property
+    def fault_r(self) -> bool:
+        return self._half["R"].fault
+
+    @property
+    def fault_l(self) -> bool:
+        return self._half["L"].fault
+
+    @property
+    def fault(self) -> bool:
+        return self._half["R"].fault or self._half["L"].fault
+
+    @property
+    def cl_trips_r(self) -> int:
+        return self._half["R"].trips
+
+    @property
+    def cl_trips_l(self) -> int:
+        return self._half["L"].trips
+
+    @property
+    def cl_trips(self) -> int:
+        return self._half["R"].trips + self._half["L"].trips
+
+    def _snapshot(self):
+        return (self._leg_of("R"), self._leg_of("L"), self._half["R"].fault, self._half["L"].fault)
+
+    def _record(self):
+        snap = self._snapshot()
+        now = self.kernel.now
+        hist = self._hist
+        if hist and hist[-1][0] == now:
+            hist[-1] = (now, snap)
+        elif not hist or hist[-1][1] != snap:
+            hist.append((now, snap))
+
+    def _leg(self, kind, sign):
+        """(c, r) with leg voltage c − r·j for current j out of the leg with sign ``sign``."""
+        p = self.params
+        if kind == "H":
+            return p.Vs, p.R_HS
+        if kind == "L":
+            return 0.0, p.R_LS
+        return (-p.V_D, p.r_D) if sign > 0 else (p.Vs + p.V_D, p.r_D)
+
+    def drive_state(self):
+        """(V⁺, V⁻, R_br, has_diode): v_m = V± − R_br·i in the i > 0 / i < 0 domain."""
+        legs = self.legs
+        self._legs_seen = legs
+        d = self._drive_cache.get(legs)
+        if d is None:
+            a, b = legs
+            ca_p, ra = self._leg(a, +1)
+            cb_n, rb = self._leg(b, -1)     # i > 0 flows into leg M−: j = −i < 0
+            ca_n, _ = self._leg(a, -1)
+            cb_p, _ = self._leg(b, +1)
+            d = self._drive_cache[legs] = (ca_p - cb_n, ca_n - cb_p, ra + rb, "Z" in legs)
+        return d
+
+    def set_params(self, **overrides) -> None:
+        new = Bts7960Params.from_mapping(overrides, base=self.params)
+
+        def do():
+            self.params = new
+            self._drive_cache = {}
+            self.cls_ticks = max(1, round(new.t_CLS * self.kernel.timebase.base_hz))
+        self.motor._change(do)
+
+    # ---- IS outputs ------------------------------------------------------------------------------
+    def is_current(self, side: str, tick: int | None = None) -> float:
+        """Current out of the IS pin of half bridge ``side`` ("R"/"L") at ``tick`` (default now), A."""
+        t = self.kernel.now if tick is None else int(tick)
+        snap = None
+        for t_c, s in reversed(self._hist):
+            if t_c <= t:
+                snap = s
+                break
+        if snap is None:
+            raise ValueError(f"{self.name}: IS at tick {t} is older than the remembered state changes")
+        p = self.params
+        k = 0 if side == "R" else 1
+        if snap[2 + k]:
+            return p.I_IS_lim
+        if snap[k] != "H":
+            return p.I_ISL
+        i = self.motor.state_at(t)[0]
+        j = i if k == 0 else -i          # current out of this leg; forward for the high side if > 0
+        return min((j if j > 0.0 else 0.0) / p.k_ILIS + p.I_ISH, p.I_IS_lim)
+
+    def is_voltage(self, side: str, tick: int | None = None) -> float:
+        """IS voltage across R_IS (clamped at Vcc) of half bridge ``side`` at ``tick``, V."""
+        return min(self.is_current(side, tick) * self.params.R_IS, self.params.Vcc)
+
+    # ---- current limitation: motor guard interface ----------------------------------------------
+    def _limit_guard(self, side):
+        """Guard (ci, c0) with h = ci·i + c0 (< 0: over the limit) for the switch now on, or None."""
+        h = self._half[side]
+        if h.fault:
+            return None
+        leg = self._leg_of(side)
+        p = self.params
+        sgn = 1.0 if side == "R" else -1.0      # j = sgn·i
+        if leg == "H":                           # trip when j > I_CLH: h = I_CLH − j
+            return (-sgn, p.I_CLH, leg)
+        if leg == "L":                           # trip when −j > I_CLL: h = I_CLL + j
+            return (sgn, p.I_CLL, leg)
+        return None
+
+    def plant_guards(self):
+        out = []
+        for side in _SIDES:
+            g = self._limit_guard(side)
+            if g is not None:
+                out.append((g[0], 0.0, 0.0, g[1], True, self, (side, g[2])))
+        return out
+
+    def on_guard(self, tag):
+        side, leg = tag
+        if self._half[side].fault or self._leg_of(side) != leg:
+            return
+        self._trip(side, leg)
+        self._record()
+        self.motor.input_changed()
+
+    def _trip(self, side, leg):
+        h = self._half[side]
+        h.fault = True
+        h.tripped = leg
+        h.trips += 1
+        self.trip_log.append((self.kernel.now, side, leg))
+        h.release_ev = self.kernel.after(self.cls_ticks, self._release, side, prio=PRIO_PLANT)
+
+    def _check_now(self):
+        """Trip at once any switch that is on and already over its limit (after a state change)."""
+        i = self.motor.current
+        for side in _SIDES:
+            g = self._limit_guard(side)
+            if g is not None and g[0] * i + g[1] < 0.0:
+                self._trip(side, g[2])
+
+    def _release(self, side):
+        h = self._half[side]
+        h.release_ev = None
+        h.fault = False
+        h.tripped = None
+        self._check_now()
+        self._record()
+        self.motor.input_changed()
+
+    def _on_pin(self, net):
+        if self.legs != self._legs_seen:
+            self._check_now()
+            self._record()
+            self.motor.input_changed()
+
+    def __repr__(self):
+        f = "".join(f" CL-{s}" for s in _SIDES if self._half[s].fault)
+        return f"Bts7960Bridge({self.name}: {''.join(self.legs)}{f})"
