@@ -54,6 +54,7 @@ class ArduinoCore:
         self.int_func = [None, None]
         self.analog_reference = 1  # DEFAULT: AVcc
         self.debt_cycles = 0
+        self.isr_cycles = {0: INT_TRAMPOLINE_CYCLES, 1: INT_TRAMPOLINE_CYCLES}
         self.cpu.vector(TIMER0_OVF_vect, self.timer0_ovf_isr, cost=TIMER0_OVF_CYCLES)
 
     # --- registers --------------------------------------------------------------------------
@@ -193,10 +194,17 @@ class ArduinoCore:
         if n not in (0, 1):
             return
         self.int_func[n] = fn
-        cost = cycles if cycles is not None else getattr(fn, "ISR_CYCLES", INT_TRAMPOLINE_CYCLES)
-        self.cpu.vector((INT0_vect, INT1_vect)[n], lambda: self.int_func[n](), cost=cost)
+        if cycles is not None:
+            self.isr_cycles[n] = cycles
+        self.cpu.vector((INT0_vect, INT1_vect)[n], lambda: self.int_func[n](), cost=self.isr_cycles[n])
         self._w(EICRA, (self._r(EICRA) & ~(3 << 2 * n)) | (mode << 2 * n))
         self._w(EIMSK, self._r(EIMSK) | (1 << n))
+
+    def set_isr_cycles(self, n: int, cycles: int) -> None:
+        """Declare the cost of external interrupt n's whole ISR (e.g. the Encoder's measured 148)."""
+        self.isr_cycles[n] = cycles
+        if self.int_func[n] is not None:
+            self.attach_interrupt(n, self.int_func[n], (self._r(EICRA) >> 2 * n) & 3)
 
     def detach_interrupt(self, n: int) -> None:
         self._w(EIMSK, self._r(EIMSK) & ~(1 << n))

@@ -56,6 +56,8 @@ class OpenRoverMcm:
         self.core = ArduinoCore(mcu, adc=adc)
         # globals, constructed before init() as C++ globals are
         self.encoder = Encoder(self.core, ENC_A_PIN, ENC_B_PIN)
+        for n in (0, 1):  # the library's measured ISR length (reference sheet §3)
+            self.core.set_isr_cycles(n, Encoder.ISR_CYCLES)
         self.timer1 = TimerOne(mcu.bus, self.core)
         self.wire = TwoWire(self.core, variant=self.p["wire_variant"])
         self.pid = PID(self.p["kp"], self.p["ki"], self.p["kd"], direction=DIRECT, millis=self.core.millis)
