@@ -23,9 +23,12 @@ from .time import TimeBase, parse_frequency
 PART_KINDS = {
     "dcmotor": "mcusim.plant.dcmotor:DcMotor",
     "l6206": "mcusim.plant.l6206:L6206Bridge",
+    "bts7960": "mcusim.plant.bts7960:Bts7960Bridge",
     "encoder": "mcusim.plant.encoder:QuadratureEncoder",
 }
-PART_TERMINALS = {"l6206": ("IN1", "IN2", "EN"), "encoder": ("A", "B"), "dcmotor": ()}
+# digital terminals wired through [pins]: (required, optional)
+PART_TERMINALS = {"l6206": (("IN1", "IN2", "EN"), ()), "bts7960": (("RPWM", "LPWM"), ("R_EN", "L_EN")),
+                  "encoder": (("A", "B"), ()), "dcmotor": ((), ())}
 
 
 def board_names() -> list[str]:
@@ -175,9 +178,12 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             if spec["motor"] not in parts:
                 raise ConfigError(f"{where}: part {name}: motor {spec['motor']!r} must be declared before it")
             args["motor"] = parts[spec["motor"]]
-        for term in PART_TERMINALS[kind]:
+        required, optional = PART_TERMINALS[kind]
+        for term in required + optional:
             pin = wiring.get(name, {}).get(term)
             if pin is None:
+                if term in optional:
+                    continue
                 raise ConfigError(f"{where}: part {name}: terminal {term} is not wired in [pins]")
             args[term.lower()] = mcu.pin(pin)
         try:

@@ -246,7 +246,7 @@ class Bts7960Bridge:
             return p.I_ISL
         i = self.motor.state_at(t)[0]
         j = i if k == 0 else -i          # current out of this leg; forward for the high side if > 0
-        return min((j if j > 0.0 else 0.0) / p.k_ILIS + p.I_ISH, p.I_IS_lim)
+        return min(max(0.0, j) / p.k_ILIS + p.I_ISH, p.I_IS_lim)
 
     def is_voltage(self, side: str, tick: int | None = None) -> float:
         """IS voltage across R_IS (clamped at Vcc) of half bridge ``side`` at ``tick``, V."""
