@@ -80,7 +80,7 @@ def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
     parts = {p["name"]: {} for p in profile.get("part", [])}
     firmware, topics = {}, []
     for key, value in overrides.items():
-        if key.startswith("/"):
+        if key.startswith("/") or "." not in key:  # a topic or a firmware input (velocity=10)
             topics.append((key, value))
             continue
         head, dot, name = key.partition(".")
@@ -95,7 +95,28 @@ def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
     return parts, firmware, topics
 
 
-def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict):
+def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
+    """Peripheral parameters that name shared objects: ``inputs = {0 = "A0"}`` (analog nets of the
+    MCU) and ``bus = "i2c0"`` (a bus shared by every MCU of the system)."""
+    from .i2c import I2cBus
+    from .signals import AnalogNet
+    out = {}
+    if "inputs" in spec:
+        nets = {}
+        for ch, net_name in spec["inputs"].items():
+            net = mcu.analog.setdefault(net_name, AnalogNet(net_name))
+            nets[int(ch)] = net
+        out["inputs"] = nets
+    if "bus" in spec:
+        name = spec["bus"]
+        if name not in buses:
+            buses[name] = I2cBus(kernel, name)
+        out["bus"] = buses[name]
+    return out
+
+
+def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
+          buses: dict | None = None):
     """Instantiate kernel, MCU, peripherals, plant and (optionally) firmware. Returns a namespace dict."""
     try:
         board = profile["board"]
@@ -107,6 +128,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     base = [parse_frequency(f) for f in clocks.get("base", [clocks["sysclk"]])]
     timebase = TimeBase(base)
     kernel = Kernel(timebase)
+    buses = {} if buses is None else buses
     bus = Bus(f"{board['name']}.bus")
     mcu = Mcu(board["mcu"], kernel, bus, timebase.clock("SYSCLK", sysclk))
     mcu.clocks["SYSCLK"] = mcu.core_clock
@@ -122,6 +144,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     for spec in profile.get("peripheral", []):
         cls = _import(spec["class"], f"{where}: peripheral {spec.get('name')}")
         kwargs = {k: v for k, v in spec.items() if k not in ("name", "class", "base", "clock", "outputs")}
+        kwargs.update(_resolve_peripheral_refs(spec, mcu, kernel, buses, where))
         if spec["class"].endswith(":Rcc"):
             kwargs["sysclk_hz"] = sysclk
         if "clock" in spec:
@@ -193,6 +216,15 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     for part in wiring:
         if part not in parts:
             raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
+    # [analog]: an MCU analog input follows a part's analog output (IBT-2 R_IS -> A0)
+    for net_name, target in profile.get("analog", {}).items():
+        part_name, _, terminal = target.partition(".")
+        src = getattr(parts.get(part_name), terminal.lower(), None)
+        if src is None or not hasattr(src, "voltage"):
+            raise ConfigError(f"{where}: [analog] {net_name} = {target!r}: no such analog output")
+        if net_name not in mcu.analog:
+            raise ConfigError(f"{where}: [analog] {net_name}: no peripheral reads this analog input")
+        mcu.analog[net_name].source = src.voltage
 
     firmware = None
     if with_firmware:
@@ -206,4 +238,4 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     elif firmware_params:
         raise ConfigError(f"firmware parameters {', '.join(firmware_params)} given, but the firmware is off")
     return {"timebase": timebase, "kernel": kernel, "mcu": mcu, "parts": parts, "firmware": firmware,
-            "board": board, "profile": profile, "sysclk": Fraction(sysclk)}
+            "board": board, "profile": profile, "sysclk": Fraction(sysclk), "buses": buses}

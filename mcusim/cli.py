@@ -73,11 +73,14 @@ def _print_summary(s: dict) -> None:
           f"({rtf:.3f}x real time), {s['events']:,} events" if rtf else
           f"{s['board']}: simulated {s['simulated_s']:.6f} s, {s['events']:,} events")
     if s["motors"]:
-        print(f"{'motor':<10}{'angle (rad)':>14}{'setpoint (rad)':>16}{'peak current (A)':>18}")
+        print(f"{'motor':<10}{'angle (rad)':>14}{'setpoint (rad)':>16}{'speed (rpm)':>14}{'peak current (A)':>18}")
         for name, m in s["motors"].items():
             sp = m.get("setpoint_rad")
             print(f"{name:<10}{m['angle_rad']:>14.4f}{(f'{sp:.4f}' if sp is not None else '-'):>16}"
-                  f"{m['peak_current_a']:>18.3f}")
+                  f"{m['speed_rpm']:>14.2f}{m['peak_current_a']:>18.3f}")
+    fw = s.get("firmware")
+    if fw:
+        print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))
 
 
 def cmd_run(args) -> int:

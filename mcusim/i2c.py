@@ -69,9 +69,12 @@ that ACKed the address. Two slaves claiming a read address is bus contention and
 :class:`~mcusim.errors.McusimError`. ``bus.log``, if set to a list, receives
 ``(tick, kind, value)`` tuples (``start``, ``restart``, ``addr``, ``write``, ``read``, ``stop``).
 
-Not modelled: bit-level SDA/SCL waveforms (the optional ``sda``/``scl`` nets are only driven at the
-START/STOP instants and held levels, see :meth:`I2cBus._drive`), multi-master arbitration, 10-bit
-addresses, set-up/hold times other than those stated above.
+Nets: the optional ``sda``/``scl`` :class:`~mcusim.signals.Net` objects (give them ``pull=1``) get a
+coarse trace only: SDA falls at START/Sr, SCL is shown low from the START's SCL fall, and both are
+released at STOP. Bit-by-bit waveforms are not generated.
+
+Not modelled: bit-level timing inside a byte (the ACK is decided at the byte's end), multi-master
+arbitration, 10-bit addresses, set-up/hold times other than those stated above.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ class Mcu:
         self.cpu = None
         self.rtos = None
         self.pins: dict[str, Net] = {}
+        self.analog: dict[str, object] = {}  # analog input nets by name (A0 ...)
         self.periph: dict[str, object] = {}
         self.clocks: dict[str, object] = {}       # name -> Clock (e.g. "APB1_TIM")
         self.clock_users: dict[str, list] = {}    # clock name -> peripherals with set_kernel_clock

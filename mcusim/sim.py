@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time as _wall
 
 from .board import build, parse_value, read_profile, split_overrides
@@ -110,11 +111,12 @@ class Simulation:
         sim_s = self.time_s
         motors = {}
         for i, (name, m) in enumerate(sorted(self.motors.items()), start=1):
-            entry = {"angle_rad": m.output_angle, "peak_current_a": m.peak_current}
+            entry = {"angle_rad": m.output_angle, "speed_rpm": m.output_speed * 60 / (2 * math.pi),
+                     "peak_current_a": m.peak_current}
             if self.firmware is not None and hasattr(self.firmware, "set_point"):
                 entry["setpoint_rad"] = self.firmware.set_point(i)
             motors[name] = entry
-        return {
+        out = {
             "board": self.board_name,
             "simulated_s": sim_s,
             "wall_s": self.wall_s,
@@ -122,6 +124,9 @@ class Simulation:
             "events": self.kernel.events,
             "motors": motors,
         }
+        if self.firmware is not None and hasattr(self.firmware, "summary"):
+            out["firmware"] = self.firmware.summary()
+        return out
 
 
 def load(board: str, firmware: bool = True, overrides: dict | None = None, **kw) -> Simulation:

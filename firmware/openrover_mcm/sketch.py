@@ -42,6 +42,23 @@ DEFAULTS = {
     "cycles_loop_idle": 40,             # declared: one pass of loop() with nothing to do
 }
 RPWM_PIN, LPWM_PIN, ENC_A_PIN, ENC_B_PIN = 9, 10, 2, 3
+COUNTS_PER_MOTOR_TURN, GEAR_RATIO = 2048, 50
+
+# Inputs a host can give the module (``--set velocity=10``): each becomes an I2C write from a
+# host master on the module's bus, as the robot controller would send it.
+HOST_INPUTS = {
+    "velocity": "wheel velocity set point, rpm (SETPOINT = rpm·50·2048/60 counts/s)",
+    "pid_enable": "CONTROL bit 0 (false stops the motor)",
+    "clear_faults": "CONTROL = PID_ENABLE | CLEAR_FAULTS",
+}
+
+
+def rpm_to_counts(rpm: float) -> int:
+    return round(rpm * GEAR_RATIO * COUNTS_PER_MOTOR_TURN / 60)
+
+
+def counts_to_rpm(counts_s: float) -> float:
+    return counts_s * 60 / (GEAR_RATIO * COUNTS_PER_MOTOR_TURN)
 
 
 class OpenRoverMcm:
@@ -149,6 +166,41 @@ class OpenRoverMcm:
         self.pid.output = 0.0
         self.set_duty(0)
         self.status &= ~P.ST_PID_ENABLED
+
+    # --- host side (not firmware): commands as I2C transactions on the module's bus ---------------
+    def _host(self):
+        if getattr(self, "_host_master", None) is None:
+            from mcusim.i2c import I2cMaster
+            twi = self.mcu.periph["TWI"]
+            self._host_master = I2cMaster(self.mcu.kernel, twi.bus, scl_hz=100_000)
+        return self._host_master
+
+    def publish(self, name: str, value) -> None:
+        addr = self.p["i2c_address"]
+        if name == "velocity":
+            self._host().write(addr, bytes([P.BY_NAME["SETPOINT"].addr]) + P.encode("SETPOINT", rpm_to_counts(float(value))))
+        elif name == "pid_enable":
+            ctl = P.CTL_PID_ENABLE if value in (True, 1, "true", "1") else 0
+            self._host().write(addr, bytes([P.BY_NAME["CONTROL"].addr, ctl]))
+        elif name == "clear_faults":
+            self._host().write(addr, bytes([P.BY_NAME["CONTROL"].addr, P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS]))
+        else:
+            raise ConfigError(f"no input {name!r}; the module takes: " +
+                              "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
+
+    def topic(self, name: str):
+        values = {"velocity": counts_to_rpm(self.velocity), "current": self.current_ma / 1000,
+                  "status": self.status, "charge": self.charge_mas / 1000}
+        if name not in values:
+            raise ConfigError(f"no output {name!r}; the module reports {', '.join(values)}")
+        return values[name]
+
+    def summary(self) -> dict:
+        return {"velocity_setpoint_rpm": counts_to_rpm(self.setpoint),
+                "velocity_measured_rpm": counts_to_rpm(self.velocity),
+                "current_a": self.current_ma / 1000, "charge_c": self.charge_mas / 1000,
+                "faults": [n for n, bit in (("stall", P.ST_STALL), ("overcurrent", P.ST_OVERCURRENT),
+                                            ("request_error", P.ST_ERROR)) if self.status & bit]}
 
     # --- I2C (called from the TWI ISR, as Wire's callbacks are) -------------------------------------
     def receive_event(self, n: int) -> None:

@@ -29,6 +29,8 @@ Modelled
   by a later TWDR write with TWINT = 1).
 * TWSTO = 1 in slave mode recovers from an error: the TWI goes to the not-addressed state (no STOP
   is sent); TWSTO reads back 0.
+* ``twi.twint`` (a :class:`mcusim.firmware.Signal`) fires each time hardware sets TWINT, for
+  firmware that polls TWINT instead of using the interrupt.
 * Clearing TWEN abandons the transfer (not addressed, SCL released).
 
 Not modelled (raise or stated)
@@ -43,6 +45,7 @@ Not modelled (raise or stated)
 from __future__ import annotations
 
 from mcusim.errors import UnsupportedConfiguration
+from mcusim.firmware import Signal
 from mcusim.registers import Field, Peripheral, Register
 
 TWINT, TWEA, TWSTA, TWSTO, TWWC, TWEN, TWIE = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x01
@@ -74,6 +77,7 @@ class Twi(Peripheral):
         self._tx_last = False
         self.status_log: list[tuple[int, int]] = []  # (tick, status) each time TWINT is set
         self._holding = False
+        self.twint = Signal()   # fired whenever hardware sets TWINT (for polled firmware)
         bus.attach(self)
 
     # --- register side ------------------------------------------------------------------------
@@ -110,6 +114,7 @@ class Twi(Peripheral):
         self.set_bits("TWCR", TWINT)
         self.status_log.append((self.kernel.now, code))
         self._sync()
+        self.twint.fire()
 
     def _enabled(self):
         return bool(self.value["TWCR"] & TWEN)
