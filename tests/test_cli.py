@@ -73,3 +73,20 @@ def test_console_entry_point_runs_without_traceback():
                         "--set", "firmware.variant=bogus"], capture_output=True, text=True)
     assert r.returncode == 2
     assert "firmware.variant must be one of" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_run_pro_mini_with_velocity_prints_module_summary(tmp_path, capsys):
+    js = tmp_path / "s.json"
+    assert main(["run", "pro-mini", "--set", "velocity=10", "--duration", "200ms", "--summary", str(js)]) == 0
+    out = capsys.readouterr().out
+    assert "velocity_setpoint_rpm = 10.000" in out and "faults = []" in out
+    s = json.loads(js.read_text())
+    # the set point travels as whole counts/s: round(10·50·2048/60) = 17067 -> 10.0002 rpm
+    assert abs(s["firmware"]["velocity_setpoint_rpm"] - 10.0) < 60 / (50 * 2048)
+    assert s["motors"]["motor"]["speed_rpm"] > 1.0  # accelerating
+
+
+def test_unknown_module_input_names_the_inputs(capsys):
+    assert main(["run", "pro-mini", "--set", "speed=10", "--duration", "1ms"]) == 2
+    err = capsys.readouterr().err
+    assert "no input 'speed'" in err and "velocity" in err
