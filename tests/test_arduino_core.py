@@ -1,7 +1,7 @@
 """The Arduino core and TimerOne on the simulated ATmega328P (pro-mini board, no sketch)."""
 
 import mcusim
-from firmware.arduino.core import ArduinoCore, OUTPUT
+from firmware.arduino.core import OUTPUT, ArduinoCore
 from firmware.arduino.timerone import TimerOne
 
 

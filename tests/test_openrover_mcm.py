@@ -4,10 +4,10 @@ Everything goes through the real path: a scripted I2C master on the bus, the TWI
 twi.c's ISR and Wire's callbacks in the sketch, the register map of docs/openrover_mcm_i2c.md.
 """
 
-import struct
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mcusim
 from firmware.openrover_mcm import protocol as P

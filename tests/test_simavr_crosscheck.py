@@ -58,7 +58,7 @@ def test_timer1_ctc_toggle_times_match_simavr(tmp_path):
     # simavr writes floor(cycle · 62.5 ns / unit); with units shorter than a cycle the exact inverse
     # is the ceiling (rounding would give ±1-cycle jitter)
     per_unit = round(scale * 1e12) * 16  # cycles per unit, times 1e6: 10 ns -> 160000
-    cycles = lambda units: -(-units * per_unit // 1_000_000)  # noqa: E731
+    cycles = lambda units: -(-units * per_unit // 1_000_000)
     start = cycles(next(t for t, v in changes["TCCR1B"] if v.isdigit() and int(v, 2) & 1))
     levels, sim_toggles = None, []
     for t, v in changes["OC1A"]:  # simavr repeats values: keep real level changes

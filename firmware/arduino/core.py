@@ -17,7 +17,17 @@ Function names are the core's in snake_case. Deviations, as the simulation needs
 
 from __future__ import annotations
 
-from firmware.arduino.core_api import CHANGE, FALLING, HIGH, INPUT, INPUT_PULLUP, LOW, NOT_AN_INTERRUPT, OUTPUT, RISING  # noqa: F401
+from firmware.arduino.core_api import (  # noqa: F401
+    CHANGE,
+    FALLING,
+    HIGH,
+    INPUT,
+    INPUT_PULLUP,
+    LOW,
+    NOT_AN_INTERRUPT,
+    OUTPUT,
+    RISING,
+)
 from mcusim.errors import ConfigError
 
 # data-space addresses (iom328p.h)

@@ -46,6 +46,8 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, replace
 
+from mcusim.plant.hbridge import MosfetBridge
+
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from ..signals import AnalogNet, Net
@@ -99,7 +101,7 @@ class _Half:
         self.release_ev = None
 
 
-class Bts7960Bridge:
+class Bts7960Bridge(MosfetBridge):
     """``Bts7960Bridge(kernel, motor, rpwm, lpwm, r_en=None, l_en=None, name="ibt2", *, params=None,
     is_r=None, is_l=None, cl_action="other", **overrides)``.
 
@@ -195,28 +197,6 @@ class Bts7960Bridge:
         elif not hist or hist[-1][1] != snap:
             hist.append((now, snap))
 
-    def _leg(self, kind, sign):
-        """(c, r) with leg voltage c − r·j for current j out of the leg with sign ``sign``."""
-        p = self.params
-        if kind == "H":
-            return p.Vs, p.R_HS
-        if kind == "L":
-            return 0.0, p.R_LS
-        return (-p.V_D, p.r_D) if sign > 0 else (p.Vs + p.V_D, p.r_D)
-
-    def drive_state(self):
-        """(V⁺, V⁻, R_br, has_diode): v_m = V± − R_br·i in the i > 0 / i < 0 domain."""
-        legs = self.legs
-        self._legs_seen = legs
-        d = self._drive_cache.get(legs)
-        if d is None:
-            a, b = legs
-            ca_p, ra = self._leg(a, +1)
-            cb_n, rb = self._leg(b, -1)     # i > 0 flows into leg M−: j = −i < 0
-            ca_n, _ = self._leg(a, -1)
-            cb_p, _ = self._leg(b, +1)
-            d = self._drive_cache[legs] = (ca_p - cb_n, ca_n - cb_p, ra + rb, "Z" in legs)
-        return d
 
     def set_params(self, **overrides) -> None:
         new = Bts7960Params.from_mapping(overrides, base=self.params)

@@ -29,6 +29,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+from mcusim.plant.hbridge import MosfetBridge
+
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from ..signals import Net
@@ -71,7 +73,7 @@ class L6206Params:
 _TRUTH = {(0, 0): ("L", "L"), (1, 0): ("H", "L"), (0, 1): ("L", "H"), (1, 1): ("H", "H")}
 
 
-class L6206Bridge:
+class L6206Bridge(MosfetBridge):
     """``L6206Bridge(kernel, motor, in1, in2, en, name="bridgeA", ocd=None, drive_en=False, **params)``.
 
     ``in1``, ``in2``, ``en``: :class:`~mcusim.signals.Net` inputs (listened to). ``params`` are
@@ -109,28 +111,6 @@ class L6206Bridge:
             return ("Z", "Z")
         return _TRUTH[(1 if self.in1.level else 0, 1 if self.in2.level else 0)]
 
-    def _leg(self, kind, sign):
-        """(c, r) with leg voltage c − r·j for current j out of the leg with sign ``sign``."""
-        p = self.params
-        if kind == "H":
-            return p.Vs, p.R_HS
-        if kind == "L":
-            return 0.0, p.R_LS
-        return (-p.V_D, p.r_D) if sign > 0 else (p.Vs + p.V_D, p.r_D)
-
-    def drive_state(self):
-        """(V⁺, V⁻, R_br, has_diode): v_m = V± − R_br·i in the i > 0 / i < 0 domain."""
-        legs = self.legs
-        self._legs_seen = legs
-        d = self._drive_cache.get(legs)
-        if d is None:
-            a, b = legs
-            ca_p, ra = self._leg(a, +1)
-            cb_n, rb = self._leg(b, -1)     # i > 0 flows into leg B: j_B = −i < 0
-            ca_n, _ = self._leg(a, -1)
-            cb_p, _ = self._leg(b, +1)
-            d = self._drive_cache[legs] = (ca_p - cb_n, ca_n - cb_p, ra + rb, "Z" in legs)
-        return d
 
     def set_params(self, **overrides) -> None:
         new = L6206Params.from_mapping(overrides, base=self.params)

@@ -1,0 +1,34 @@
+"""The general MOSFET leg model of reference/plants.md §2.1, shared by the L6206 and BTS7960 bridges.
+
+Each leg is H (high side on), L (low side on) or Z (both off: the body diodes conduct). For a
+current j flowing out of the leg, its voltage is ``c − r·j`` with (c, r) from :meth:`_leg`; the
+motor sees v_m = v_A − v_B. A bridge using :class:`MosfetBridge` provides ``params`` (Vs, R_HS,
+R_LS, V_D, r_D), a ``legs`` property giving the (A, B) leg states now, and ``_drive_cache = {}``.
+"""
+
+from __future__ import annotations
+
+
+class MosfetBridge:
+    def _leg(self, kind, sign):
+        """(c, r) with leg voltage c − r·j for current j out of the leg with sign ``sign``."""
+        p = self.params
+        if kind == "H":
+            return p.Vs, p.R_HS
+        if kind == "L":
+            return 0.0, p.R_LS
+        return (-p.V_D, p.r_D) if sign > 0 else (p.Vs + p.V_D, p.r_D)
+
+    def drive_state(self):
+        """(V⁺, V⁻, R_br, has_diode): v_m = V± − R_br·i in the i > 0 / i < 0 domain (DcMotor's contract)."""
+        legs = self.legs
+        self._legs_seen = legs
+        d = self._drive_cache.get(legs)
+        if d is None:
+            a, b = legs
+            ca_p, ra = self._leg(a, +1)
+            cb_n, rb = self._leg(b, -1)     # i > 0 flows into leg B: j_B = −i < 0
+            ca_n, _ = self._leg(a, -1)
+            cb_p, _ = self._leg(b, +1)
+            d = self._drive_cache[legs] = (ca_p - cb_n, ca_n - cb_p, ra + rb, "Z" in legs)
+        return d
