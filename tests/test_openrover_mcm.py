@@ -110,12 +110,17 @@ def test_current_reading_is_the_high_side_current_at_the_sample_instant(module):
 
 def test_stall_stops_motor_and_raises_fault(module):
     sim, host = module
-    # a blocked wheel: static friction far above what the motor can deliver (a locked rotor)
+    # a blocked wheel: static friction far above what the motor can deliver (a locked rotor).
+    # With the default KI the duty passes ~63 % (43 A, the BTS7960 current limit) before the stall
+    # timer runs out and the driver fault stops the motor first; KI = 0.02 ramps the duty at
+    # ~340/s, so it is above 300 from 0.9 s and the stall is declared at ~1.4 s, at ~480 (28 A).
+    host.write("KI", 0.02)
+    assert host.read("KI") == pytest.approx(0.02)
     sim.part("motor").set_params(tau_s=100.0)
     host.write("SETPOINT", rpm_to_counts(10.0))
-    sim.run(seconds=1.5)
+    sim.run(seconds=2.0)
     status = host.read("STATUS")
-    assert status & P.ST_STALL and not status & P.ST_PID_ENABLED
+    assert status & P.ST_STALL and not status & P.ST_OVERCURRENT and not status & P.ST_PID_ENABLED
     assert sim.firmware.duty == 0
     host.write("CONTROL", P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS)
     assert not host.read("STATUS") & P.ST_STALL
@@ -142,3 +147,14 @@ def test_16bit_position_unwraps_to_true_count(moves):
         last = raw
         assert unwrapped == true
     sim.discard()
+
+
+def test_driver_overtemperature_is_reported_and_stops_the_motor(module):
+    sim, host = module
+    host.write("SETPOINT", rpm_to_counts(10.0))
+    sim.run(seconds=0.5)
+    sim.part("ibt2").overtemperature("both")   # IS shows 4.5 mA into 1 kΩ: ~920 ADC counts
+    sim.run(seconds=0.05)
+    status = host.read("STATUS")
+    assert status & P.ST_OVERCURRENT and not status & P.ST_PID_ENABLED
+    assert sim.firmware.duty == 0

@@ -370,3 +370,29 @@ def test_full_speed_edge_rate_from_the_simulated_no_load_speed_is_about_77_8k_co
     assert rate == pytest.approx(77.8e3, rel=0.005)              # §3.2: ≈77.8 k counts/s at ≈2,280 rpm
     f_a = len(a_edges) / 2 / t_win                               # A: 2 edges per cycle
     assert f_a == pytest.approx(19.4e3, rel=0.01)                # §3.2: 19.4 kHz per channel
+
+
+def test_overtemperature_turns_the_half_bridge_off_and_shows_the_fault_current():
+    """§2.3: on thermal shutdown both switches are off and IS sources I_IS(lim) (4.5 mA into 1 kΩ:
+    4.5 V); the latch holds until an INH low pulse resets it."""
+    from mcusim.kernel import Kernel
+    from mcusim.plant.bts7960 import Bts7960Bridge
+    from mcusim.plant.dcmotor import DcMotor
+    from mcusim.signals import Net
+    from mcusim.time import TimeBase
+    k = Kernel(TimeBase([16_000_000]))
+    m = DcMotor(k, "m", preset="openrover-100w-50")
+    rpwm, lpwm, r_en = Net("RPWM"), Net("LPWM"), Net("R_EN")
+    r_en.set("mcu", 1)
+    rpwm.set("mcu", 1)
+    b = Bts7960Bridge(k, m, rpwm, lpwm, r_en=r_en)
+    k.run_until(16_000)                       # 1 ms of forward drive
+    assert b.legs == ("H", "L") and m.current > 1.0
+    b.overtemperature("R")
+    assert b.legs == ("Z", "L") and b.overtemp
+    assert b.is_voltage("R") == 4.5
+    k.run_until(16_000 * 50)
+    assert m.current == 0.0                   # decayed through the diodes, then blocked
+    r_en.set("mcu", 0)                        # INH low pulse resets the latch
+    r_en.set("mcu", 1)
+    assert not b.overtemp and b.legs == ("H", "L")

@@ -9,7 +9,8 @@ loop(): every SAMPLE_MS (PID_v1's sample time) the velocity in counts/s is measu
 encoder, PID_v1 computes a duty in [-1024, 1024] (TimerOne units), the sign picks RPWM or LPWM;
 both IS pins are read and the current of the driving half-bridge is converted to mA; charge is
 integrated; a stall (|duty| above STALL_DUTY while the speed stays below STALL_SPEED for STALL_MS)
-stops the motor and raises the STALL fault, cleared over I2C.
+stops the motor and raises the STALL fault, and an IS reading at the BTS7960's fault level
+(current limit or overtemperature) stops it and raises the driver fault; both are cleared over I2C.
 
 The paper gives the structure, not the figures; the constants below are ours (overridable as
 ``firmware.<name>``). Between passes that find nothing to do, the loop waits for the next
@@ -36,6 +37,7 @@ DEFAULTS = {
     "stall_speed": 200,                 # ... with |velocity| below this (counts/s) ...
     "stall_ms": 500,                    # ... for this long is a stall
     "r_is": 1000.0, "k_ilis": 8500.0,   # IBT-2 current sense: I = V_IS / R_IS · k_ILIS
+    "is_fault_counts": 900,             # IS at the fault current (4.5 mA · 1 kΩ ≈ 920 counts)
     "avcc": 5.0,
     "wire_variant": "fixed",
     "cycles_loop_work": 3000,           # declared: soft-float PID_v1 + bookkeeping per sample
@@ -144,6 +146,9 @@ class OpenRoverMcm:
     async def measure_current(self, dt_ms: int) -> None:
         r = await self.core.analog_read(A0)
         l_ = await self.core.analog_read(A1)
+        if max(r, l_) >= self.p["is_fault_counts"]:  # a BTS7960 reports a fault on its IS pin
+            self.stop_motor()
+            self.status |= P.ST_OVERCURRENT
         volts = (r if self.duty >= 0 else l_) * self.p["avcc"] / 1024
         ma = volts / self.p["r_is"] * self.p["k_ilis"] * 1000
         self.current_ma = int(ma) if self.duty >= 0 else -int(ma)
@@ -199,7 +204,7 @@ class OpenRoverMcm:
         return {"velocity_setpoint_rpm": counts_to_rpm(self.setpoint),
                 "velocity_measured_rpm": counts_to_rpm(self.velocity),
                 "current_a": self.current_ma / 1000, "charge_c": self.charge_mas / 1000,
-                "faults": [n for n, bit in (("stall", P.ST_STALL), ("overcurrent", P.ST_OVERCURRENT),
+                "faults": [n for n, bit in (("stall", P.ST_STALL), ("driver", P.ST_OVERCURRENT),
                                             ("request_error", P.ST_ERROR)) if self.status & bit]}
 
     # --- I2C (called from the TWI ISR, as Wire's callbacks are) -------------------------------------

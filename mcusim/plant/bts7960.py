@@ -34,8 +34,13 @@ t), the switch state from a short history of this bridge's state changes, so an 
 IS at a tick inside the PWM period sees the chopped waveform exactly. At a tick where the state
 changed, the state after the change is used.
 
-Not modelled: dead time and switching delays/slew rate (R_SR), the thermal shutdown (T_jSD with
-latch reset by an INH low pulse — omitted), under/over-voltage lock-out, the temperature and
+Overtemperature: there is no thermal model, so the shutdown is an injected fault
+(``overtemperature(side)``, e.g. from a scenario): the half bridge turns both switches off (leg Z)
+and its IS pin shows the fault current I_IS(lim) until the latch is reset by an INH low pulse or by
+``clear_overtemperature(side)`` (cooled down) [§2.3: thermal shutdown latched, reset via INH].
+
+Not modelled: dead time and switching delays/slew rate (R_SR), the junction temperature itself
+(T_jSD is not computed: see above), under/over-voltage lock-out, the temperature and
 supply dependence of R_ON and of the current-limit levels, the k_ILIS spread (a parameter, typ.
 8500), IS settling time, any RC filter on the board's IS lines, supply ripple (Vs is an ideal
 source; see §4.1 for the battery).
@@ -91,11 +96,12 @@ _HISTORY = 32      # state changes remembered for IS evaluation at past ticks
 class _Half:
     """One BTS7960: IN, INH nets, and the current-limitation state."""
 
-    __slots__ = ("en", "fault", "inp", "release_ev", "tripped", "trips")
+    __slots__ = ("en", "fault", "inp", "overtemp", "release_ev", "tripped", "trips")
 
     def __init__(self, inp: Net, en: Net | None):
         self.inp, self.en = inp, en
         self.fault = False
+        self.overtemp = False    # latched thermal shutdown (injected)
         self.tripped = None      # "H" or "L": the switch that detected the over-current
         self.trips = 0
         self.release_ev = None
@@ -149,7 +155,7 @@ class Bts7960Bridge(MosfetBridge):
     # ---- state ---------------------------------------------------------------------------------
     def _leg_of(self, side: str) -> str:
         h = self._half[side]
-        if h.en is not None and not h.en.level:
+        if (h.en is not None and not h.en.level) or h.overtemp:
             return "Z"
         if h.fault:
             if self.cl_action == "off":
@@ -186,7 +192,8 @@ class Bts7960Bridge(MosfetBridge):
         return self._half["R"].trips + self._half["L"].trips
 
     def _snapshot(self):
-        return (self._leg_of("R"), self._leg_of("L"), self._half["R"].fault, self._half["L"].fault)
+        r, l_ = self._half["R"], self._half["L"]
+        return (self._leg_of("R"), self._leg_of("L"), r.fault or r.overtemp, l_.fault or l_.overtemp)
 
     def _record(self):
         snap = self._snapshot()
@@ -288,7 +295,34 @@ class Bts7960Bridge(MosfetBridge):
         self._record()
         self.motor.input_changed()
 
+    # ---- overtemperature (injected; no thermal model) -------------------------------------------
+    @property
+    def overtemp(self) -> bool:
+        return self._half["R"].overtemp or self._half["L"].overtemp
+
+    def overtemperature(self, side: str = "both") -> None:
+        """Latch the thermal shutdown of half bridge "R", "L" or both, now."""
+        self._set_overtemp(side, True)
+
+    def clear_overtemperature(self, side: str = "both") -> None:
+        """Reset the latch (the chip has cooled down and been re-armed)."""
+        self._set_overtemp(side, False)
+
+    def _set_overtemp(self, side, value):
+        sides = _SIDES if side == "both" else (side,)
+        if any(s not in _SIDES for s in sides):
+            raise ConfigError(f"{self.name}: side must be 'R', 'L' or 'both', not {side!r}")
+
+        def do():
+            for s in sides:
+                self._half[s].overtemp = value
+            self._record()
+        self.motor._change(do)
+
     def _on_pin(self, net):
+        for h in self._half.values():  # an INH low pulse resets the thermal latch
+            if h.overtemp and h.en is net and not net.level:
+                self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
         if self.legs != self._legs_seen:
             self._check_now()
             self._record()
