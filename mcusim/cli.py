@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import sys
 import time
@@ -17,8 +16,6 @@ EXAMPLES_RUN = """examples:
   mcusim run nucleo-f746 --duration 500ms --set /motor1/set_pos=1.57 --vcd out.vcd
   mcusim run nucleo-f746 --set motor1.load_inertia=2e-5 --set firmware.variant=thesis --summary s.json
 """
-
-BENCH_SETPOINTS = {"/motor1/set_pos": 3 * math.pi, "/motor2/set_pos": -math.pi / 2}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -106,11 +103,14 @@ def cmd_run(args) -> int:
 
 
 def bench(board: str, duration, repeat: int = 3) -> dict:
-    """Run the fixed two-motor step scenario ``repeat`` times; figures of the median run."""
+    """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run."""
+    from .board import read_profile
     from .sim import load
+    profile = read_profile(board)[0]
+    scenario = profile.get("bench", {}).get("set") or profile.get("run", {}).get("set", {})
     runs = []
     for _ in range(repeat):
-        sim = load(board, overrides=BENCH_SETPOINTS)
+        sim = load(board, overrides=dict(scenario))
         t0 = time.perf_counter()
         sim.run(seconds=duration)
         wall = time.perf_counter() - t0
@@ -118,7 +118,7 @@ def bench(board: str, duration, repeat: int = 3) -> dict:
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
-    return {"board": board, "scenario": "motor1 -> 3π rad, motor2 -> -π/2 rad", "simulated_s": sim_s,
+    return {"board": board, "scenario": ", ".join(f"{k}={v:g}" for k, v in scenario.items()), "simulated_s": sim_s,
             "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
             "repeat": repeat}
