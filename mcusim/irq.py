@@ -117,11 +117,11 @@ class Nvic(Peripheral):
         shift = (offset % 4) * 8
         return (v >> shift) & ((1 << (8 * size)) - 1)
 
-    def _set_from(self, new, target, add):
-        # ``new`` is the written word; the register name tells which 32 IRQs it covers
+    def _set_from(self, word, new, target, add):
+        """Set or clear in ``target`` the IRQs 32·word + bit for every 1 bit of the written ``new``."""
         for bit in range(32):
             if new >> bit & 1:
-                n = 32 * self._cur_word + bit
+                n = 32 * word + bit
                 if n < self.num_irqs:
                     (target.add if add else target.discard)(n)
         self._changed()
@@ -129,16 +129,16 @@ class Nvic(Peripheral):
     def write_register(self, reg, data, lanes=-1):
         if reg.name.startswith("IPR"):
             return super().write_register(reg, data, lanes)
-        self._cur_word = self._word(reg.name)
+        word = self._word(reg.name)
         data &= lanes
         if reg.name.startswith("ISER"):
-            self._set_from(data, self.enabled, True)
+            self._set_from(word, data, self.enabled, True)
         elif reg.name.startswith("ICER"):
-            self._set_from(data, self.enabled, False)
+            self._set_from(word, data, self.enabled, False)
         elif reg.name.startswith("ISPR"):
-            self._set_from(data, self.pending, True)
+            self._set_from(word, data, self.pending, True)
         elif reg.name.startswith("ICPR"):
-            self._set_from(data, self.pending, False)
+            self._set_from(word, data, self.pending, False)
             # ARM Generic User Guide: clearing the pending state of a level interrupt whose line is
             # still asserted has no effect
             self.pending |= {n for n, lv in self.lines.items() if lv and n >= 0}

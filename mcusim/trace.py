@@ -17,7 +17,7 @@ class VcdTrace:
     def __init__(self, sim, path, sample="50us"):
         self.sim = sim
         self.base_hz = sim.timebase.base_hz
-        self._file = open(path, "w")
+        self._file = open(path, "w")  # noqa: SIM115 (open for the trace's lifetime; close() closes it)
         self.w = VCDWriter(self._file, timescale="1 ps", date="", comment=f"mcusim {sim.board_name}")
         board = sim.board_name
         now = self._ps(sim.kernel.now)

@@ -1,5 +1,7 @@
 """The Arduino core and TimerOne on the simulated ATmega328P (pro-mini board, no sketch)."""
 
+import itertools
+
 import mcusim
 from firmware.arduino.core import OUTPUT, ArduinoCore
 from firmware.arduino.timerone import TimerOne
@@ -20,7 +22,7 @@ def edges(sim, pin, cycles):
 def periods_and_highs(ev):
     rises = [t for t, lv in ev if lv]
     falls = [t for t, lv in ev if not lv]
-    periods = {b - a for a, b in zip(rises, rises[1:])}
+    periods = {b - a for a, b in itertools.pairwise(rises)}
     highs = {min(f for f in falls if f > r) - r for r in rises[:-1]}
     return periods, highs
 

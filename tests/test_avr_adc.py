@@ -4,19 +4,13 @@ instant, ADIF, free running, data-register lock, unsupported configurations."""
 from fractions import Fraction
 
 import pytest
+from avr_rig import bare_atmega328p
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
-from mcusim.firmware import Cpu
-from mcusim.irq import AvrInterrupts
-from mcusim.kernel import Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
 from mcusim.signals import AnalogNet
-from mcusim.time import TimeBase
 from periph.avr.adc import Adc
-from periph.avr.cpu import AvrCpuRegs
 
 ADCL, ADCH, ADCSRA, ADCSRB, ADMUX, DIDR0 = 0x78, 0x79, 0x7A, 0x7B, 0x7C, 0x7E
 ADEN, ADSC, ADATE, ADIF, ADIE = 0x80, 0x40, 0x20, 0x10, 0x08
@@ -24,18 +18,10 @@ AVCC = 0x40  # REFS = 01
 
 
 def make(volts=(0.0,) * 8, aref=None, cpu=False):
-    tb = TimeBase([16_000_000])
-    k = Kernel(tb)
-    bus = Bus()
-    clock = tb.clock("cpu", 16_000_000)
-    mcu = Mcu("atmega328p", k, bus, clock)
-    mcu.irq = mcu.nvic = AvrInterrupts()
+    mcu = bare_atmega328p(cpu=cpu)
     nets = {n: AnalogNet(f"ADC{n}", v) for n, v in enumerate(volts)}
-    adc = Adc("ADC", mcu, clock, nets, avcc=5.0, aref=aref)
-    bus.attach_registers(0, adc)
-    bus.attach_registers(0, AvrCpuRegs("CPU", mcu))
-    if cpu:
-        mcu.cpu = Cpu(k, clock, mcu.irq, entry_latency=4)
+    adc = Adc("ADC", mcu, mcu.core_clock, nets, avcc=5.0, aref=aref)
+    mcu.bus.attach_registers(0, adc)
     return mcu, adc, nets
 
 

@@ -1,15 +1,9 @@
 """ATmega328P ports, INT0/INT1 and the AVR interrupt model (fixed priority, I flag, lost edges)."""
 
 import pytest
+from avr_rig import bare_atmega328p
 
-from mcusim.firmware import Cpu, Rtos
-from mcusim.irq import AvrInterrupts
-from mcusim.kernel import Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
 from mcusim.signals import Port
-from mcusim.time import TimeBase
-from periph.avr.cpu import AvrCpuRegs
 from periph.avr.extint import ExtInt
 from periph.avr.port import AvrPort
 
@@ -19,21 +13,14 @@ EIFR, EIMSK, EICRA, SREG = 0x3C, 0x3D, 0x69, 0x5F
 
 @pytest.fixture
 def m():
-    tb = TimeBase([16_000_000])
-    k = Kernel(tb)
-    bus = Bus()
-    clock = tb.clock("cpu", 16_000_000)
-    mcu = Mcu("atmega328p", k, bus, clock)
-    mcu.irq = mcu.nvic = AvrInterrupts()
+    mcu = bare_atmega328p(cpu=True)
+    bus, clock = mcu.bus, mcu.core_clock
     for name, base in (("PORTB", 0x23), ("PORTC", 0x26), ("PORTD", 0x29)):
         p = AvrPort(name, mcu, name[-1])
         mcu.periph[name] = p
         bus.attach_registers(base, p)
     mcu.periph["EXINT"] = ExtInt("EXINT", mcu, clock)
     bus.attach_registers(0, mcu.periph["EXINT"])
-    bus.attach_registers(0, AvrCpuRegs("CPU", mcu))
-    mcu.cpu = Cpu(k, clock, mcu.irq, entry_latency=4)
-    mcu.rtos = Rtos(mcu.cpu)
     return mcu
 
 

@@ -2,16 +2,12 @@
 modes against the per-clock oracle (tests/avr_timer_oracle.py)."""
 
 import pytest
+from avr_rig import bare_atmega328p
 from avr_timer_oracle import MODES8, OCFA, TOV, Oracle
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
-from mcusim.irq import AvrInterrupts
-from mcusim.kernel import Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
-from mcusim.time import TimeBase
 from periph.avr.timer0 import Timer0
 
 TIFR0, GTCCR, TCCR0A, TCCR0B, TCNT0, OCR0A, OCR0B, TIMSK0 = 0x35, 0x43, 0x44, 0x45, 0x46, 0x47, 0x48, 0x6E
@@ -20,12 +16,9 @@ OVF = 16
 
 class Rig:
     def __init__(self):
-        self.tb = TimeBase([16_000_000])
-        self.kernel = Kernel(self.tb)
-        self.bus = Bus()
-        self.clock = self.tb.clock("cpu", 16_000_000)
-        self.mcu = Mcu("atmega328p", self.kernel, self.bus, self.clock)
-        self.mcu.irq = AvrInterrupts()
+        self.mcu = bare_atmega328p()
+        self.kernel, self.bus, self.clock = self.mcu.kernel, self.mcu.bus, self.mcu.core_clock
+        self.tb = self.kernel.timebase
         self.t0 = Timer0("TIMER0", self.mcu, self.clock)
         self.bus.attach_registers(0, self.t0)
         self.P = self.clock.period

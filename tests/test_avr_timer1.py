@@ -4,17 +4,13 @@ rules, and the event-driven model against the per-clock oracle (tests/avr_timer_
 from itertools import pairwise
 
 import pytest
+from avr_rig import bare_atmega328p
 from avr_timer_oracle import ICF, OCFA, TOV, Oracle
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
-from mcusim.irq import AvrInterrupts
-from mcusim.kernel import Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
 from mcusim.signals import Net
-from mcusim.time import TimeBase
 from periph.avr.timer1 import Timer1
 
 TIFR1, TIMSK1, TCCR1A, TCCR1B, TCCR1C = 0x36, 0x6F, 0x80, 0x81, 0x82
@@ -29,12 +25,9 @@ DUAL = {1, 2, 3, 8, 9, 10, 11}
 
 class Rig:
     def __init__(self):
-        self.tb = TimeBase([16_000_000])
-        self.kernel = Kernel(self.tb)
-        self.bus = Bus()
-        self.clock = self.tb.clock("cpu", 16_000_000)
-        self.mcu = Mcu("atmega328p", self.kernel, self.bus, self.clock)
-        self.mcu.irq = AvrInterrupts()
+        self.mcu = bare_atmega328p()
+        self.kernel, self.bus, self.clock = self.mcu.kernel, self.mcu.bus, self.mcu.core_clock
+        self.tb = self.kernel.timebase
         self.t1 = Timer1("TIMER1", self.mcu, self.clock)
         self.bus.attach_registers(0, self.t1)
         self.P = self.clock.period

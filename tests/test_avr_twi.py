@@ -7,18 +7,13 @@ through mcusim.firmware.Cpu (the real Wire port is elsewhere)."""
 import itertools
 
 import pytest
+from avr_rig import bare_atmega328p
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
-from mcusim.firmware import Cpu
 from mcusim.i2c import I2cBus, I2cMaster
-from mcusim.irq import AvrInterrupts
-from mcusim.kernel import PRIO_CPU, Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
-from mcusim.time import TimeBase
-from periph.avr.cpu import AvrCpuRegs
+from mcusim.kernel import PRIO_CPU
 from periph.avr.twi import Twi
 
 TWBR, TWSR, TWAR, TWDR, TWCR, TWAMR = 0xB8, 0xB9, 0xBA, 0xBB, 0xBC, 0xBD
@@ -98,14 +93,8 @@ class WireSlave:
 
 
 def make(scl_hz=100_000):
-    tb = TimeBase([16_000_000])
-    k = Kernel(tb)
-    bus = Bus()
-    clock = tb.clock("cpu", 16_000_000)
-    mcu = Mcu("atmega328p", k, bus, clock)
-    mcu.irq = mcu.nvic = AvrInterrupts()
-    bus.attach_registers(0, AvrCpuRegs("CPU", mcu))
-    mcu.cpu = Cpu(k, clock, mcu.irq, entry_latency=4)
+    mcu = bare_atmega328p(cpu=True)
+    k, bus, clock = mcu.kernel, mcu.bus, mcu.core_clock
     i2c = I2cBus(k, "i2c")
     twi = Twi("TWI", mcu, clock, i2c)
     bus.attach_registers(0, twi)

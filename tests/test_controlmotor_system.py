@@ -5,6 +5,7 @@ within 3 counts of the set point (stiction and Coulomb friction leave a small de
 integral walks through).
 """
 
+import itertools
 import math
 
 import pytest
@@ -65,7 +66,7 @@ def test_ten_turn_step_wraps_the_encoder_counter_and_position_stays_continuous()
     # 10 turns at ARR = 1919 wrap the counter ten times, each an update interrupt of TIM3 (IRQ 29)
     assert sim.mcu.cpu.isr_count[29] >= 10
     # no jump at the wraps: the output shaft turns at most ~35 rad/s at 12 V, 0.35 rad per 10 ms
-    steps = [b - a for a, b in zip(positions, positions[1:]) if a is not None]
+    steps = [b - a for a, b in itertools.pairwise(positions) if a is not None]
     assert max(abs(d) for d in steps) < 40 * 0.01
     sim.run(seconds=0.5)  # arrives after ~2 s; the integral then walks it through the stiction band
     assert abs(sim.part("motor1").output_angle - target) <= 3 * COUNT
@@ -88,7 +89,7 @@ def _pwm_period(sim, pin, n=4):
     sim.pin(pin).listen(lambda net: rises.append(sim.now) if net.level else None)
     sim.run(seconds=0.0002)  # 10 periods at 50 kHz, 5 at 25 kHz
     assert len(rises) >= n
-    return {b - a for a, b in zip(rises, rises[1:])}
+    return {b - a for a, b in itertools.pairwise(rises)}
 
 
 @pytest.mark.parametrize("variant,period_b", [("correct", 4320), ("thesis", 8640)])

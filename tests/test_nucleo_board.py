@@ -1,5 +1,7 @@
 """The nucleo-f746 board without firmware: reference-sheet vectors through GPIO pins and RCC clocks."""
 
+import itertools
+
 import pytest
 
 import mcusim
@@ -46,7 +48,7 @@ def test_pe9_carries_tim1_pwm_at_50khz_with_50_percent_duty():
     ev = edges(sim, "PE9", 5 * 4320 + 100)
     rises = [t for t, lv in ev if lv == 1]
     falls = [t for t, lv in ev if lv == 0]
-    assert [b - a for a, b in zip(rises, rises[1:])] == [4320] * (len(rises) - 1)
+    assert [b - a for a, b in itertools.pairwise(rises)] == [4320] * (len(rises) - 1)
     assert len(rises) >= 4
     highs = [f - r for r, f in zip(rises, [f for f in falls if f > rises[0]])]
     assert set(highs) == {2160}
@@ -58,7 +60,7 @@ def test_tim2_counts_at_108mhz_so_arr_4319_gives_25khz():
     af(sim, GPIOA, 5, 1)
     pwm1(sim, TIM2, 4319, 2160, advanced=False)
     rises = [t for t, lv in edges(sim, "PA5", 4 * 8640 + 100) if lv]
-    assert {b - a for a, b in zip(rises, rises[1:])} == {8640}  # 40 µs in 1/216 MHz ticks
+    assert {b - a for a, b in itertools.pairwise(rises)} == {8640}  # 40 µs in 1/216 MHz ticks
 
 
 def test_timpre_makes_apb1_timers_count_at_hclk():
@@ -67,7 +69,7 @@ def test_timpre_makes_apb1_timers_count_at_hclk():
     af(sim, GPIOA, 5, 1)
     pwm1(sim, TIM2, 4319, 2160, advanced=False)
     rises = [t for t, lv in edges(sim, "PA5", 4 * 4320 + 100) if lv]
-    assert {b - a for a, b in zip(rises, rises[1:])} == {4320}
+    assert {b - a for a, b in itertools.pairwise(rises)} == {4320}
 
 
 def test_counter_readable_through_api_and_advances_per_core_cycles():

@@ -49,14 +49,14 @@ def module():
 
 
 def test_identify_over_i2c(module):
-    sim, host = module
+    _sim, host = module
     assert host.read("WHO_AM_I") == 0x4D
     assert host.read("VERSION") == (1, 0)
     assert host.read("STATUS") & P.ST_PID_ENABLED
 
 
 def test_absent_address_is_nacked(module):
-    sim, host = module
+    _sim, host = module
     tr = host._wait(host.m.write(0x09, b"\x00"))
     assert tr.addr_acks == [False]
 

@@ -51,7 +51,7 @@ def ode(v0, r_loop, sgn, p=P, load_m=0.0):
     J = p.J_eq
 
     def f(t, x):
-        i, w, th = x
+        i, w, _th = x
         return [(v0 - r_loop * i - p.K * w) / p.L, (p.K * i - p.b * w - p.tau_c * sgn - load_m) / J, w]
     return f
 
@@ -90,7 +90,7 @@ def test_brake_low_reverse_speed_matches_ode_solver():
 
 def test_complex_eigenvalue_segment_matches_ode_solver():
     # small R, large K: (R/L)²/4 < K²/(L·J) -> complex eigenvalues (underdamped)
-    kw = dict(R=0.5, L=5e-3, K=0.1, J=1e-4, tau_s=2e-3, tau_c=1e-3)
+    kw = {"R": 0.5, "L": 5e-3, "K": 0.1, "J": 1e-4, "tau_s": 2e-3, "tau_c": 1e-3}
     p = MotorParams.from_mapping(kw)
     rl = p.R + BR.R_HS + BR.R_LS
     assert (rl / p.L) ** 2 / 4 < p.K ** 2 / (p.L * p.J_eq)
@@ -162,7 +162,7 @@ def test_stall_current_is_supply_over_loop_resistance_when_load_holds_the_shaft(
     for i in (i0, i_stall):
         assert P.K * i - tau_out / (30 * 0.78) <= P.tau_s
         assert P.K * i - tau_out * 0.78 / 30 >= -P.tau_s
-    s = rig(state=(i0, 0.0, 0.0), motor_kw=dict(load_torque=tau_out), bridge=(1, 1, 0))
+    s = rig(state=(i0, 0.0, 0.0), motor_kw={"load_torque": tau_out}, bridge=(1, 1, 0))
     for t in (1e-3, 5e-3, 30e-3):
         s.k.run_until(round(t * FS))
         assert s.m.speed == 0.0 and s.m.angle == 0.0 and s.m.stuck
@@ -175,7 +175,7 @@ def test_stall_current_is_supply_over_loop_resistance_when_load_holds_the_shaft(
 def test_voltage_below_breakaway_never_moves_the_shaft():
     v = 1.0
     assert P.K * v / R_DRIVE < P.tau_s
-    s = rig(bridge_kw=dict(Vs=v), bridge=(1, 1, 0))
+    s = rig(bridge_kw={"Vs": v}, bridge=(1, 1, 0))
     for t in (1e-3, 10e-3, 200e-3):
         s.k.run_until(round(t * FS))
         assert s.m.speed == 0.0 and s.m.angle == 0.0
@@ -187,7 +187,7 @@ def test_voltage_above_breakaway_breaks_away_at_the_analytic_time():
     assert P.K * v / R_DRIVE > P.tau_s
     # stuck: i(t) = (v/R)(1 − e^{−tR/L}); breakaway when K·i = τs
     tb = -(P.L / R_DRIVE) * math.log(1 - P.tau_s * R_DRIVE / (P.K * v))
-    s = rig(bridge_kw=dict(Vs=v), bridge=(1, 1, 0))
+    s = rig(bridge_kw={"Vs": v}, bridge=(1, 1, 0))
     s.k.run_until(math.floor(tb * FS) - 1)
     assert s.m.stuck and s.m.speed == 0.0
     s.k.run_until(math.ceil(tb * FS) + 1)
@@ -298,7 +298,7 @@ def test_encoder_edges_at_analytic_crossing_times_and_a_leads_b_forward(sign):
             thr = pos * step
             pos -= 1
         prev = (a, b)
-        t_cross = brentq(lambda t: sol.sol(t)[2] - thr, 0, t_end, xtol=1e-16)
+        t_cross = brentq(lambda t, thr=thr: sol.sol(t)[2] - thr, 0, t_end, xtol=1e-16)
         assert abs(tick - t_cross * FS) <= 1.0, (tick, t_cross * FS)
 
 

@@ -169,7 +169,7 @@ def test_v9_centre_aligned_pwm1(ccr, high):
 
 
 def test_v10_prescaler_one_mhz():
-    rig, edges, t0 = pwm_rig(psc=215, arr=999)
+    rig, _edges, t0 = pwm_rig(psc=215, arr=999)
     uif = uif_times(rig)
     rig.run(215)
     assert rig.r("CNT") == 0
@@ -182,7 +182,7 @@ def test_v10_prescaler_one_mhz():
 
 
 def test_v11_psc_is_buffered_until_uev():
-    rig, edges, t0 = pwm_rig("TIM3", 108, arr=99, ccr=0)
+    rig, _edges, t0 = pwm_rig("TIM3", 108, arr=99, ccr=0)
     P = rig.P
     rig.run(10)
     assert rig.r("CNT") == 10
@@ -199,7 +199,7 @@ def test_v11_psc_is_buffered_until_uev():
 
 
 def test_v12_arpe_preload_and_immediate():
-    rig, edges, t0 = pwm_rig("TIM3", 108, arr=199, ccr=0, cr1=ARPE)
+    rig, _edges, _t0 = pwm_rig("TIM3", 108, arr=199, ccr=0, cr1=ARPE)
     rig.run(150)
     rig.w("ARR", 99)
     assert rig.r("ARR") == 99
@@ -284,7 +284,7 @@ def test_v17_ug_in_down_mode_loads_arr():
 
 
 def test_v18_sr_is_rc_w0():
-    rig, edges, t0 = pwm_rig(ccr=10, arr=99)
+    rig, _edges, _t0 = pwm_rig(ccr=10, arr=99)
     rig.w("DIER", 0)
     rig.w("SR", 0)
     rig.run(100)
@@ -512,20 +512,20 @@ def test_simultaneous_ti_edges_count_nothing():
 
 def test_centre_ccif_direction_by_cms():
     for cms, expect in ((1, [12]), (2, [4]), (3, [4, 12])):
-        rig, edges, t0 = pwm_rig(arr=8, ccr=4, cr1=cms << 5)
+        rig, _edges, t0 = pwm_rig(arr=8, ccr=4, cr1=cms << 5)
         times = uif_times(rig, 1 << 1)
         rig.run(16)
         assert [t - t0 for t in times] == expect
 
 
 def test_opm_clears_cen_at_update():
-    rig, edges, t0 = pwm_rig(arr=9, ccr=5, cr1=OPM)
+    rig, _edges, _t0 = pwm_rig(arr=9, ccr=5, cr1=OPM)
     rig.run(30)
     assert rig.r("CR1") & CEN == 0 and rig.r("CNT") == 0 and rig.r("SR") & 1
 
 
 def test_shared_and_separate_irq_lines():
-    rig, _, t0 = pwm_rig(arr=9, ccr=5)
+    rig, _, _t0 = pwm_rig(arr=9, ccr=5)
     rig.w("DIER", 0b10)
     rig.run(5)
     assert rig.nvic.lines.get(27) and not rig.nvic.lines.get(25)
@@ -540,7 +540,7 @@ def test_shared_and_separate_irq_lines():
 
 
 def test_frozen_and_forced_modes():
-    rig, edges, t0 = pwm_rig(arr=99, ccr=50)
+    rig, _edges, _t0 = pwm_rig(arr=99, ccr=50)
     rig.run(10)
     rig.w("CCMR1", 0x50)  # force active
     assert rig.tim.oc[1].value == 1
@@ -587,7 +587,7 @@ def test_encoder_capture_into_ccr1():
 
 
 def test_counter_property_has_no_side_effects():
-    rig, edges, t0 = pwm_rig(arr=99, ccr=50)
+    rig, _edges, _t0 = pwm_rig(arr=99, ccr=50)
     rig.run(42)
     state = (rig.tim._cnt, rig.tim._tb, rig.r("SR"))
     assert rig.tim.counter == 42
@@ -595,7 +595,7 @@ def test_counter_property_has_no_side_effects():
 
 
 def test_set_kernel_clock_changes_rate():
-    rig, edges, t0 = pwm_rig("TIM3", 108, arr=999, ccr=0)
+    rig, _edges, _t0 = pwm_rig("TIM3", 108, arr=999, ccr=0)
     rig.run(10)
     rig.tim.set_kernel_clock(rig.tb.clock("fast", 216_000_000))
     c = rig.r("CNT")
@@ -604,7 +604,7 @@ def test_set_kernel_clock_changes_rate():
 
 
 def test_pwm_costs_constant_events_per_period():
-    rig, edges, t0 = pwm_rig()
+    rig, _edges, _t0 = pwm_rig()
     n0 = rig.kernel.events
     rig.run(4320 * 100)
     assert rig.kernel.events - n0 <= 2 * 100 + 2

@@ -29,11 +29,11 @@ def pwm_configs(draw, writes=True):
     name = draw(st.sampled_from(["TIM1", "TIM3"]))
     arr = draw(st.integers(1, 24))
     cms = draw(st.integers(0, 3))
-    cfg = dict(
-        name=name, psc=draw(st.integers(0, 3)), arr=arr, ccr=draw(st.integers(0, arr + 2)),
-        mode=draw(st.sampled_from([PWM1, PWM2])), pol=draw(st.integers(0, 1)), cms=cms,
-        down=draw(st.booleans()) if cms == 0 else False, arpe=draw(st.booleans()),
-        ocpe=draw(st.booleans()), rcr=draw(st.integers(0, 3)) if name == "TIM1" else 0)
+    cfg = {
+        "name": name, "psc": draw(st.integers(0, 3)), "arr": arr, "ccr": draw(st.integers(0, arr + 2)),
+        "mode": draw(st.sampled_from([PWM1, PWM2])), "pol": draw(st.integers(0, 1)), "cms": cms,
+        "down": draw(st.booleans()) if cms == 0 else False, "arpe": draw(st.booleans()),
+        "ocpe": draw(st.booleans()), "rcr": draw(st.integers(0, 3)) if name == "TIM1" else 0}
     cfg["writes"] = []
     if writes:
         arr_written = False

@@ -144,7 +144,7 @@ class ControlMotorFirmware:
         dev.RCC.AHB1ENR = dev.RCC.AHB1ENR | 0b111111  # GPIOA..F clocks
         dev.RCC.APB2ENR = dev.RCC.APB2ENR | 0b1       # TIM1
         dev.RCC.APB1ENR = dev.RCC.APB1ENR | 0b111     # TIM2, TIM3, TIM4
-        out = dict(Mode=hal_gpio.GPIO_MODE_OUTPUT_PP, Pull=hal_gpio.GPIO_NOPULL)
+        out = {"Mode": hal_gpio.GPIO_MODE_OUTPUT_PP, "Pull": hal_gpio.GPIO_NOPULL}
         for port, pin in ((dev.GPIOF, 15), (dev.GPIOF, 5)):
             hal_gpio.HAL_GPIO_WritePin(port, pin, 0)
             hal_gpio.HAL_GPIO_Init(port, hal_gpio.GPIO_InitTypeDef(pin, **out))
