@@ -38,7 +38,7 @@ class _Req:
         self.kind, self.arg = kind, arg
 
     def __await__(self):
-        yield self
+        return (yield self)   # the runtime sends the request's result (wait_signal: fired or not)
 
 
 class Signal:
@@ -87,6 +87,9 @@ class Task(Context):
         self.state = "ready"  # ready | blocked | done
         self.wake_tick = None
         self.started = False
+        self.result = None     # sent into the coroutine when it resumes
+        self.deadline = None   # RTOS tick at which a wait_signal(timeout=) gives up
+        self.wait_token = None
 
 
 class Cpu:
@@ -253,9 +256,13 @@ class Rtos:
         return _Req("wfi", None)
 
     @staticmethod
-    def wait_signal(signal: Signal) -> _Req:
-        """Block until ``signal`` fires (a busy-wait on a peripheral flag, see :class:`Signal`)."""
-        return _Req("signal", signal)
+    def wait_signal(signal: Signal, timeout: int | None = None) -> _Req:
+        """Block until ``signal`` fires (a busy-wait on a peripheral flag, see :class:`Signal`).
+
+        With ``timeout`` (RTOS ticks, like NuttX's ``nxsem_tickwait``) the task also wakes when the
+        tick count has advanced by that much; ``await`` returns True if the signal fired, False on
+        a timeout."""
+        return _Req("signal", (signal, timeout))
 
     def interrupt_done(self) -> None:
         for t in self.tasks:
@@ -273,6 +280,9 @@ class Rtos:
         for t in self.tasks:
             if t.state == "blocked" and isinstance(t.wake_tick, int) and t.wake_tick <= self.tick_count:
                 t.state, t.wake_tick = "ready", None
+            elif (t.state == "blocked" and t.wake_tick == "signal" and t.deadline is not None
+                  and t.deadline <= self.tick_count):
+                t.state, t.wake_tick, t.deadline, t.result = "ready", None, None, False
 
     def reschedule(self) -> None:
         """Pick the most urgent ready task (called in thread mode, after exceptions return)."""
@@ -298,8 +308,9 @@ class Rtos:
         if self.current is not task or self.cpu.stack:
             task.remaining, task.on_done = 0, lambda: self._step(task)
             return
+        result, task.result = task.result, None
         try:
-            req = self.cpu.run_code(task.coro.send, None)
+            req = self.cpu.run_code(task.coro.send, result)
         except StopIteration:
             task.state = "done"
             self._switch()
@@ -308,17 +319,21 @@ class Rtos:
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
             self.cpu._busy(task, self.cpu.clock.cycles(req.arg), lambda: self._step(task))
         elif req.kind == "signal":
+            signal, timeout = req.arg
             task.state, task.wake_tick = "blocked", "signal"
+            task.deadline = None if timeout is None else self.tick_count + max(1, int(timeout))
             task.on_done = lambda: self._step(task)
             task.remaining = 0
 
-            def wake(task=task):
-                if task.state == "blocked" and task.wake_tick == "signal":
-                    task.state, task.wake_tick = "ready", None
+            token = task.wait_token = object()   # a waiter left behind by a timeout must not wake a later wait
+
+            def wake(task=task, token=token):
+                if task.state == "blocked" and task.wake_tick == "signal" and task.wait_token is token:
+                    task.state, task.wake_tick, task.deadline, task.result = "ready", None, None, True
                     if not self.cpu.stack:
                         self.reschedule()
                         self.cpu._resume(self.current)
-            req.arg._wait(wake)
+            signal._wait(wake)
             self._switch()
         elif req.kind == "wfi":
             task.state, task.wake_tick = "blocked", "wfi"

@@ -184,3 +184,38 @@ def test_clear_pending_has_no_effect_while_level_line_is_asserted(m):
     m.nvic.set_line(29, True)
     m.write32(NVIC + 0x180, 1 << 29)  # ICPR
     assert m.read32(NVIC + 0x100) & (1 << 29)
+
+
+def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later_wait():
+    """nxsem_tickwait semantics: the wait ends after ``timeout`` RTOS ticks with False; a signal
+    firing later must not wake the task out of its next, unrelated wait."""
+    from mcusim.firmware import Cpu, Rtos, Signal
+    from mcusim.irq import Nvic
+    from mcusim.kernel import Kernel
+    from mcusim.time import TimeBase
+    tb = TimeBase([1_000_000])
+    k = Kernel(tb)
+    nvic = Nvic(num_irqs=16)
+    cpu = Cpu(k, tb.clock("cpu", 1_000_000), nvic)
+    rtos = Rtos(cpu)
+    a, b = Signal(), Signal()
+    seen = []
+
+    async def task():
+        seen.append(("a", await rtos.wait_signal(a, timeout=3), rtos.tick_count))
+        seen.append(("b", await rtos.wait_signal(b), rtos.tick_count))
+        seen.append(("a2", await rtos.wait_signal(a, timeout=100), rtos.tick_count))
+
+    rtos.create_task("t", task(), priority=1)
+
+    def tick():
+        rtos.systick_handler()
+        rtos.reschedule()
+        cpu._resume(rtos.current)
+    for n in range(1, 10):
+        k.at(n * 1000, tick)
+    k.at(6500, a.fire)      # the stale waiter of the first wait must not wake the wait on b
+    k.at(7500, b.fire)
+    k.at(8500, a.fire)
+    k.run_until(10_000)
+    assert seen == [("a", False, 3), ("b", True, 7), ("a2", True, 8)]

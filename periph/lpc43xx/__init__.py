@@ -1,0 +1,1 @@
+"""NXP LPC4337 (LPC43xx, Cortex-M4 at 204 MHz) peripherals: ADC0/1, I2C0, GPIO, USART."""
