@@ -25,10 +25,17 @@ PART_KINDS = {
     "l6206": "mcusim.plant.l6206:L6206Bridge",
     "bts7960": "mcusim.plant.bts7960:Bts7960Bridge",
     "encoder": "mcusim.plant.encoder:QuadratureEncoder",
+    "battery": "mcusim.plant.battery:LeadAcidBank",
+    "divider": "mcusim.plant.battery:DividerPart",
+    "rover-body": "mcusim.plant.rover:RoverBody",
+    "estop": "mcusim.plant.estop:EStop",
 }
 # digital terminals wired through [pins]: (required, optional)
 PART_TERMINALS = {"l6206": (("IN1", "IN2", "EN"), ()), "bts7960": (("RPWM", "LPWM"), ("R_EN", "L_EN")),
-                  "encoder": (("A", "B"), ()), "dcmotor": ((), ())}
+                  "encoder": (("A", "B"), ()), "dcmotor": ((), ()), "battery": ((), ()), "divider": ((), ()),
+                  "rover-body": ((), ()), "estop": (("ENABLE_IN",), ("ENABLE_OUT", "SENSE"))}
+# part parameters that name other parts (resolved to the part objects): one name or a list
+PART_REFS = {"motor": "motor", "source": "source", "loads": "loads", "motors": "motors"}
 
 
 def board_names() -> list[str]:
@@ -95,6 +102,14 @@ def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
     return parts, firmware, topics
 
 
+def board_clocks(profile: dict) -> list:
+    """The clock frequencies a board needs in the time base (its [clocks] ``base`` list)."""
+    clocks = profile.get("clocks", {})
+    if "sysclk" not in clocks:
+        return []
+    return [parse_frequency(f) for f in clocks.get("base", [clocks["sysclk"]])]
+
+
 def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
     """Peripheral parameters that name shared objects: ``inputs = {0 = "A0"}`` (analog nets of the
     MCU) and ``bus = "i2c0"`` (a bus shared by every MCU of the system)."""
@@ -115,9 +130,59 @@ def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
     return out
 
 
+def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: str,
+                lookup=None) -> dict:
+    """Instantiate plant parts in declaration order. ``wiring[part][TERMINAL]`` is the Net of each
+    digital terminal; parameters in :data:`PART_REFS` name other parts, resolved among the parts
+    built so far or by ``lookup(name)`` (a system's parts of its boards: ``"mcm1.motor"``)."""
+    parts: dict = {}
+
+    def ref(name, who):
+        if name in parts:
+            return parts[name]
+        found = lookup(name) if lookup is not None else None
+        if found is None:
+            raise ConfigError(f"{where}: part {who}: no part {name!r} declared before it")
+        return found
+
+    for spec in specs:
+        name, kind = spec["name"], spec.get("kind")
+        if kind not in PART_KINDS:
+            raise ConfigError(f"{where}: part {name}: unknown kind {kind!r} (kinds: {', '.join(PART_KINDS)})")
+        cls = _import(PART_KINDS[kind], f"{where}: part {name}")
+        params = {k: v for k, v in spec.items() if k not in ("name", "kind") and k not in PART_REFS}
+        params.update(part_overrides.get(name, {}))
+        args = {}
+        for key in PART_REFS:
+            if key in spec:
+                v = spec[key]
+                args[key] = [ref(x, name) for x in v] if isinstance(v, list) else ref(v, name)
+        required, optional = PART_TERMINALS[kind]
+        for term in required + optional:
+            net = wiring.get(name, {}).get(term)
+            if net is None:
+                if term in optional:
+                    continue
+                raise ConfigError(f"{where}: part {name}: terminal {term} is not wired in [pins]")
+            args[term.lower()] = net
+        try:
+            parts[name] = cls(kernel, name=name, **args, **params)
+        except TypeError as exc:
+            raise ConfigError(f"{where}: part {name}: {exc}") from None
+    for part in wiring:
+        if part not in parts:
+            raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
+    return parts
+
+
 def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
-          buses: dict | None = None):
-    """Instantiate kernel, MCU, peripherals, plant and (optionally) firmware. Returns a namespace dict."""
+          buses: dict | None = None, kernel: Kernel | None = None, external: dict | None = None):
+    """Instantiate kernel, MCU, peripherals, plant and (optionally) firmware. Returns a namespace dict.
+
+    A system (:mod:`mcusim.system`) builds several boards on one ``kernel`` (whose time base must
+    contain every board's clocks), shares I2C ``buses`` by name, and hands in ``external`` nets
+    for part terminals the board leaves open (``{"ibt2": {"R_EN": net}}``: the rover's
+    motor-enable line)."""
     try:
         board = profile["board"]
         clocks = profile["clocks"]
@@ -125,9 +190,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     except KeyError as exc:
         raise ConfigError(f"{where}: missing table [{exc.args[0]}]") from None
     sysclk = parse_frequency(clocks["sysclk"])
-    base = [parse_frequency(f) for f in clocks.get("base", [clocks["sysclk"]])]
-    timebase = TimeBase(base)
-    kernel = Kernel(timebase)
+    if kernel is None:
+        kernel = Kernel(TimeBase(board_clocks(profile)))
+    timebase = kernel.timebase
     buses = {} if buses is None else buses
     bus = Bus(f"{board['name']}.bus")
     mcu = Mcu(board["mcu"], kernel, bus, timebase.clock("SYSCLK", sysclk))
@@ -163,6 +228,11 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             bus.attach(spec["base"], p)
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
+    # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
+    for pin_name, level in profile.get("pull", {}).items():
+        if level not in (0, 1):
+            raise ConfigError(f"{where}: [pull] {pin_name} = {level!r}: expected 0 or 1")
+        mcu.pin(pin_name).set_pull(level)
     # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1)
     for spec in profile.get("peripheral", []):
         for out, pin_name in spec.get("outputs", {}).items():
@@ -184,42 +254,19 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     mcu.rtos = Rtos(mcu.cpu)
 
     # plant parts and wiring
-    wiring: dict[str, dict[str, str]] = {}
+    wiring: dict[str, dict[str, object]] = {}
     for pin, target in profile.get("pins", {}).items():
         part, _, terminal = target.partition(".")
-        wiring.setdefault(part, {})[terminal] = pin
-    parts = {}
-    for spec in profile.get("part", []):
-        name, kind = spec["name"], spec.get("kind")
-        if kind not in PART_KINDS:
-            raise ConfigError(f"{where}: part {name}: unknown kind {kind!r} (kinds: {', '.join(PART_KINDS)})")
-        cls = _import(PART_KINDS[kind], f"{where}: part {name}")
-        params = {k: v for k, v in spec.items() if k not in ("name", "kind", "motor")}
-        params.update(part_overrides.get(name, {}))
-        args = {}
-        if "motor" in spec:
-            if spec["motor"] not in parts:
-                raise ConfigError(f"{where}: part {name}: motor {spec['motor']!r} must be declared before it")
-            args["motor"] = parts[spec["motor"]]
-        required, optional = PART_TERMINALS[kind]
-        for term in required + optional:
-            pin = wiring.get(name, {}).get(term)
-            if pin is None:
-                if term in optional:
-                    continue
-                raise ConfigError(f"{where}: part {name}: terminal {term} is not wired in [pins]")
-            args[term.lower()] = mcu.pin(pin)
-        try:
-            parts[name] = cls(kernel, name=name, **args, **params)
-        except TypeError as exc:
-            raise ConfigError(f"{where}: part {name}: {exc}") from None
-    for part in wiring:
-        if part not in parts:
-            raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
+        wiring.setdefault(part, {})[terminal] = mcu.pin(pin)
+    for part, terms in (external or {}).items():
+        wiring.setdefault(part, {}).update(terms)
+    parts = build_parts(kernel, profile.get("part", []), part_overrides, wiring, where)
     # [analog]: an MCU analog input follows a part's analog output (IBT-2 R_IS -> A0)
     for net_name, target in profile.get("analog", {}).items():
         part_name, _, terminal = target.partition(".")
         src = getattr(parts.get(part_name), terminal.lower(), None)
+        if src is None and not terminal:
+            src = parts.get(part_name)
         if src is None or not hasattr(src, "voltage"):
             raise ConfigError(f"{where}: [analog] {net_name} = {target!r}: no such analog output")
         if net_name not in mcu.analog:

@@ -33,6 +33,11 @@ class Net:
             self._drivers[driver] = 1 if level else 0
         self._resolve()
 
+    def set_pull(self, level: int | None) -> None:
+        """Change the level the net takes when nothing drives it (a board pull-up or pull-down)."""
+        self.pull = level
+        self._resolve()
+
     def drive(self, level: int) -> None:
         """External stimulus: force the level, taking the net away from every driver."""
         self._forced = 1 if level else 0
