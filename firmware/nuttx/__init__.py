@@ -1,0 +1,1 @@
+"""NuttX pieces of the OpenRover robot controller (LPC4337), written like their C originals."""
