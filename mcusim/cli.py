@@ -143,7 +143,8 @@ def main(argv=None) -> int:
         if args.cmd == "boards":
             from .board import board_names, read_profile
             for name in board_names():
-                print(f"{name:<16}{read_profile(name)[0]['board'].get('description', '')}")
+                prof = read_profile(name)[0]
+                print(f"{name:<16}{(prof.get('board') or prof.get('system', {})).get('description', '')}")
             return 0
         if args.cmd == "run":
             return cmd_run(args)

@@ -1,0 +1,182 @@
+"""Host ends of a simulated serial port (UART/USART TX and RX lines).
+
+The endpoint protocol (duck-typed; the kernel imports no peripheral model):
+
+* the USART model calls ``endpoint.attach(usart)`` when it is connected (``Usart(..., endpoint=ep)``
+  or ``usart.connect(ep)``);
+* it calls ``endpoint.transmit(byte, tick)`` at the end of every TX frame (``tick`` = base tick of
+  the frame's end, ``byte`` already masked to the word length);
+* the endpoint delivers host -> MCU bytes by calling ``usart.receive(data: bytes)``, which puts them
+  on the RX line from the current simulated time on, one frame each, queued behind any byte still
+  being received.
+
+:class:`BufferEndpoint` is in memory and fully deterministic. :class:`PtyEndpoint` is a pseudo
+terminal that host programs (pyserial, pymavlink ``mavlink_connection(ep.path)``, a ground station)
+open like a serial port.
+
+**Determinism.** What a pty delivers, and at which simulated instant, depends on the host: on when
+the other program writes, on the kernel's pty buffering and on how fast the simulation runs compared
+with the wall clock. The pty is read only at the poll events, at fixed simulated ticks, and every
+injection is recorded in ``PtyEndpoint.injected`` as ``(tick, bytes)``; everything after an injection
+is deterministic, and feeding the same log to a :class:`BufferEndpoint` with :meth:`feed_at`
+replays the run exactly. Output to the host never influences the simulation (it is buffered, never
+blocks, and is dropped only when the host does not read, see ``PtyEndpoint.max_backlog``).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+
+from .errors import McusimError
+from .kernel import PRIO_INPUT
+
+
+class BufferEndpoint:
+    """In-memory endpoint: ``sent`` collects what the MCU transmitted, ``feed`` injects bytes."""
+
+    def __init__(self):
+        self.usart = None
+        self.sent = bytearray()
+        self.log: list[tuple[int, int]] = []   # (tick, byte) of every byte the MCU sent
+
+    def attach(self, usart) -> None:
+        self.usart = usart
+
+    def transmit(self, byte: int, tick: int) -> None:
+        self.sent.append(byte)
+        self.log.append((tick, byte))
+
+    def _need_usart(self):
+        if self.usart is None:
+            raise McusimError("serial endpoint is not connected to a USART")
+        return self.usart
+
+    def feed(self, data) -> None:
+        """Bytes from the host: they start arriving on the RX line now."""
+        self._need_usart().receive(bytes(data))
+
+    def feed_at(self, tick: int, data) -> None:
+        """Schedule ``feed(data)`` at base tick ``tick`` (e.g. to replay ``PtyEndpoint.injected``)."""
+        usart = self._need_usart()
+        usart.kernel.at(tick, usart.receive, bytes(data), prio=PRIO_INPUT)
+
+
+class PtyEndpoint:
+    """A pseudo terminal: the host program opens ``path`` (the slave side); the simulation uses the master.
+
+    Both ends are set to raw mode (no echo, no CR/LF translation: binary MAVLink frames pass
+    unchanged). ``poll`` is the simulated interval between reads of the host's input, in base ticks
+    (int) or a duration string ("1ms", rounded to the nearest base tick); default 1 ms. The baud rate
+    the host program sets on the pty is ignored: bytes take the USART's frame time on the RX line.
+    """
+
+    def __init__(self, poll="1ms", chunk: int = 4096, max_backlog: int = 1 << 20):
+        import tty
+
+        self.poll_spec, self.chunk, self.max_backlog = poll, chunk, max_backlog
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.master)
+        tty.setraw(self.slave)   # kept open, so the master never sees a hang-up between host sessions
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.usart = None
+        self.poll = None
+        self._ev = None
+        self._backlog = bytearray()
+        self.dropped = 0                               # MCU -> host bytes lost because the host did not read
+        self.injected: list[tuple[int, bytes]] = []    # (tick, bytes) handed to the USART
+        self.closed = False
+
+    # --- endpoint protocol ---------------------------------------------------------------------
+    def attach(self, usart) -> None:
+        if self.closed:
+            raise McusimError(f"pty {self.path} is closed")
+        self.usart = usart
+        kernel = usart.kernel
+        if isinstance(self.poll_spec, int):
+            poll = self.poll_spec
+        else:
+            poll = kernel.timebase.ticks(self.poll_spec, rounding=True)
+        if poll <= 0:
+            raise McusimError(f"pty poll interval {self.poll_spec!r} must be at least one base tick")
+        self.poll = poll
+        if self._ev is not None:
+            self._ev.cancel()
+        self._ev = kernel.after(poll, self._poll, prio=PRIO_INPUT)
+
+    def transmit(self, byte: int, tick: int) -> None:
+        if self.closed:
+            return
+        self._backlog.append(byte)
+        self._flush()
+
+    # --- host side -----------------------------------------------------------------------------
+    def _flush(self) -> None:
+        while self._backlog:
+            try:
+                n = os.write(self.master, self._backlog)
+            except BlockingIOError:
+                break
+            except OSError as e:                       # EIO: no slave open; keep the bytes
+                if e.errno != errno.EIO:
+                    raise
+                break
+            del self._backlog[:n]
+        excess = len(self._backlog) - self.max_backlog
+        if excess > 0:
+            del self._backlog[:excess]
+            self.dropped += excess
+
+    def _read(self) -> bytes:
+        try:
+            return os.read(self.master, self.chunk)
+        except BlockingIOError:
+            return b""
+        except OSError as e:
+            if e.errno == errno.EIO:                   # no slave side open at the moment
+                return b""
+            raise
+
+    def _poll(self) -> None:
+        self._ev = None
+        if self.closed:
+            return
+        self._flush()
+        data = self._read()
+        if data:
+            self.injected.append((self.usart.kernel.now, data))
+            self.usart.receive(data)
+        self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
+
+    def wait_input(self, timeout: float) -> bool:
+        """Block the *host* (not the simulation) up to ``timeout`` seconds until the host program has
+        written something; for tools and tests that pace the simulation on host input."""
+        if self.closed:
+            return False
+        ready, _, _ = select.select([self.master], [], [], timeout)
+        return bool(ready)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        for fd in (self.master, self.slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        if not getattr(self, "closed", True):
+            self.close()
