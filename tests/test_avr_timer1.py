@@ -5,8 +5,8 @@ from itertools import pairwise
 
 import pytest
 from avr_rig import bare_atmega328p
-from avr_timer_oracle import ICF, OCFA, TOV, Oracle
-from hypothesis import HealthCheck, given, settings
+from avr_timer_oracle import ICF, OCFA, OCFB, TOV, Oracle
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
@@ -450,8 +450,37 @@ def test_tov1_flag_clocks_match_oracle(case):
     assert seen == want
 
 
+@pytest.mark.parametrize("mode", [8, 10])
+def test_dual_slope_top_forces_up_count_level_when_tcnt_write_blocked_the_up_count_match(mode):
+    """ICR1 = 10, OCR1A = 1, COM1A = 10, N = 1: OC1A is set by the down-count match leaving 1 (clock
+    20).  TCNT1 = 1 written after clock 21 (counting up) blocks the up-count match of clock 22, so
+    OC1A is still high when TOP is left on clock 31, and the level forcing at TOP clears it there
+    (not at the next up-count match, clock 42).  The lazy model used to skip that TOP clock."""
+    rig, orc = build(mode, 1, 10, 2, 1, 0)
+    rig.run_clocks(21)
+    orc.run(21)
+    assert rig.t1.counter == orc.c == 1
+    rig.w16(TCNT1, 1)
+    orc.write_tcnt(1)
+    rig.run_clocks(60)
+    orc.run(60)
+    got = [(rig.cyc(t), v) for t, v in rig.edges["A"] if t > 0]
+    assert got == orc.edges["A"] == [(20, 1), (31, 0), (40, 1), (42, 0), (60, 1), (62, 0), (80, 1)]
+
+
+class Draws:
+    """Stands in for ``st.data()`` in an ``@example``: replays fixed draws in order."""
+
+    def __init__(self, *values):
+        self.values = iter(values)
+
+    def draw(self, strategy, label=None):
+        return next(self.values)
+
+
 @given(st.sampled_from([1, 8, 9, 10, 11, 14, 15, 5]), st.integers(3, 300), st.integers(0, 1),
        st.data())
+@example(mode=8, top=10, n_idx=0, data=Draws(1, 0, 21, 0, True, 1))  # TCNT write blocks up-match
 @settings(max_examples=60, deadline=None)
 def test_ocr_write_mid_period_takes_effect_at_update_point(mode, top, n_idx, data):
     n = (1, 8)[n_idx]
@@ -510,4 +539,75 @@ def test_non_pwm_modes_match_oracle_including_counter_above_top(mode, top, ocra,
         got = [(rig.cyc(t), v) for t, v in rig.edges[ch] if t > 0]
         assert got == orc.edges[ch]
     assert rig.t1.counter == orc.c
+    assert rig.r(TIFR1) == orc.flags
+
+
+VECTOR_FLAG = {10: ICF, 11: OCFA, 12: OCFB, 13: TOV}
+
+
+@given(st.sampled_from(sorted(DUAL)), st.integers(3, 60), st.sampled_from([1, 8]), st.data())
+@settings(max_examples=40, deadline=None)
+def test_dual_slope_tcnt_and_top_writes_anywhere_match_oracle_with_interrupt_lines(mode, top, n, data):
+    """TCNT1 writes on either slope, at TOP/BOTTOM and above TOP, mixed with OCR1x/TOP writes and
+    flag clears, with interrupts enabled (the lazy model then schedules the flag clocks too)."""
+    if mode in FIXED_TOP:
+        top = FIXED_TOP[mode]
+    tsrc = VARIABLE_TOP.get(mode)
+    ocr = st.integers(0, top if tsrc is None else top + 1)   # fixed-TOP modes mask higher values
+    ocra = top if tsrc == "A" else data.draw(ocr)
+    ocrb = data.draw(ocr)
+    coma, comb = data.draw(st.sampled_from([1, 2, 3])), data.draw(st.sampled_from([2, 3]))
+    timsk = data.draw(st.sampled_from([0, TOV | OCFA | OCFB | ICF, TOV, OCFA, OCFB, ICF]))
+    rig = Rig()
+    rig.w16(ICR1, top if tsrc == "I" else 0)
+    rig.w16(OCR1A, ocra)
+    rig.w16(OCR1B, ocrb)
+    rig.w(TIMSK1, timsk)
+    rig.mode(mode, cs=PRESCALE_CS[n], com=(coma << 6) | (comb << 4))
+    orc = Oracle(mode, ocr=(ocra, ocrb), icr=top if tsrc == "I" else 0, com=(coma, comb))
+    NP = n * rig.P
+    seen, want = [], []
+    rig.mcu.irq.line_listeners.append(
+        lambda v, lv: lv and v in VECTOR_FLAG and seen.append((rig.kernel.now // NP, VECTOR_FLAG[v])))
+
+    def run(clocks):
+        for _ in range(clocks):
+            before = orc.flags
+            orc.clock()
+            new = orc.flags & ~before & timsk
+            want.extend((orc.k, b) for b in (TOV, OCFA, OCFB, ICF) if new & b)
+        rig.kernel.run_until(orc.k * NP + data.draw(st.integers(0, n - 1)))  # mid-prescaler writes
+        assert rig.t1.counter == orc.c
+
+    run(data.draw(st.integers(0, 3 * top)))
+    for _ in range(data.draw(st.integers(1, 4))):
+        op = data.draw(st.sampled_from(["tcnt", "tcnt", "tcnt", "ocr", "top", "clear"]))
+        if op == "tcnt":
+            edges = [0, 1, top - 1, top, top + 1, orc.buf["A"], orc.buf["B"]]
+            v = data.draw(st.one_of(st.sampled_from(edges), st.integers(0, top)))
+            rig.w16(TCNT1, v)
+            orc.write_tcnt(v)
+        elif op == "ocr":
+            ch = "B" if tsrc == "A" else data.draw(st.sampled_from("AB"))
+            v = data.draw(ocr)
+            rig.w16(OCR1A if ch == "A" else OCR1B, v)
+            orc.write_ocr(ch, v)
+        elif op == "top" and tsrc is not None:
+            v = data.draw(st.integers(3, top + 5))
+            if tsrc == "A":
+                rig.w16(OCR1A, v)
+                orc.write_ocr("A", v)
+            else:
+                rig.w16(ICR1, v)
+                orc.icr = v
+        elif op == "clear":
+            b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
+            rig.w(TIFR1, b)
+            orc.flags &= ~b
+        run(data.draw(st.integers(0, 2 * top + 3)))
+    run(4 * (top + 5))
+    for ch in "AB":
+        if orc.output(ch) is not None:
+            assert [(t // NP, v) for t, v in rig.edges[ch] if t > 0] == orc.edges[ch], ch
+    assert seen == want
     assert rig.r(TIFR1) == orc.flags

@@ -325,8 +325,10 @@ class AvrTimer(Peripheral):
         v, T, lev = self._ocr[ch], self._top, self._act[ch][1]
         if v >= T:
             return self._latch[ch] != 1 - lev
-        q = (self._qj + max(k, self._k0) - self._kj) % self._L
-        return v < q <= T and self._latch[ch] != lev
+        k = max(k, self._k0)
+        q = (self._qj + k - self._kj) % self._L
+        # the up-count match is behind us, or it is the very next clock and a TCNT write blocks it
+        return (v < q <= T or (v == q and k + 1 == self._kblock)) and self._latch[ch] != lev
 
     def _plan(self, k):
         if self._ev is not None:
