@@ -25,10 +25,10 @@ PART_KINDS = {
     "l6206": "mcusim.plant.l6206:L6206Bridge",
     "bts7960": "mcusim.plant.bts7960:Bts7960Bridge",
     "encoder": "mcusim.plant.encoder:QuadratureEncoder",
-    "battery": "mcusim.plant.battery:LeadAcidBank",
-    "divider": "mcusim.plant.battery:DividerPart",
-    "rover-body": "mcusim.plant.rover:RoverBody",
-    "estop": "mcusim.plant.estop:EStop",
+    "battery": "mcusim.plant.parts:BatteryPart",
+    "divider": "mcusim.plant.parts:DividerPart",
+    "rover-body": "mcusim.plant.parts:RoverBodyPart",
+    "estop": "mcusim.plant.parts:EStopPart",
 }
 # digital terminals wired through [pins]: (required, optional)
 PART_TERMINALS = {"l6206": (("IN1", "IN2", "EN"), ()), "bts7960": (("RPWM", "LPWM"), ("R_EN", "L_EN")),
@@ -82,12 +82,25 @@ def parse_value(text: str):
     return text
 
 
+def _firmware_inputs(profile: dict) -> set:
+    """The names in the firmware module's ``HOST_INPUTS`` (inputs a host can give it)."""
+    spec = profile.get("firmware", {}).get("class", "")
+    try:
+        module = importlib.import_module(spec.partition(":")[0]) if spec else None
+    except ImportError:
+        return set()
+    return set(getattr(module, "HOST_INPUTS", {}))
+
+
 def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
     """Sort ``--set`` keys into part parameters, firmware parameters and topic messages."""
     parts = {p["name"]: {} for p in profile.get("part", [])}
     firmware, topics = {}, []
     for key, value in overrides.items():
         if key.startswith("/") or "." not in key:  # a topic or a firmware input (velocity=10)
+            topics.append((key, value))
+            continue
+        if key in _firmware_inputs(profile):       # a dotted firmware input (cmd_vel.linear)
             topics.append((key, value))
             continue
         head, dot, name = key.partition(".")
@@ -98,7 +111,9 @@ def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
         elif head in parts:
             parts[head][name] = value
         else:
-            raise ConfigError(f"--set {key}: no part {head!r}; parts: {', '.join(parts)}, firmware")
+            inputs = sorted(_firmware_inputs(profile))
+            raise ConfigError(f"--set {key}: no part {head!r}; parts: {', '.join(parts)}, firmware"
+                              + (f"; firmware inputs: {', '.join(inputs)}" if inputs else ""))
     return parts, firmware, topics
 
 

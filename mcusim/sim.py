@@ -7,14 +7,22 @@ import time as _wall
 
 from .board import build, parse_value, read_profile, split_overrides
 from .errors import ConfigError, McusimError
+from .system import build_system, is_system
 
 
 class Simulation:
     def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None):
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
-        part_params, fw_params, topics = split_overrides(profile, overrides)
-        ns = build(profile, where, part_params, firmware, fw_params)
+        if is_system(profile):
+            ns = build_system(profile, where, overrides, firmware)
+            topics = ns["topics"]
+            self.members = ns["members"]
+        else:
+            part_params, fw_params, topics = split_overrides(profile, overrides)
+            ns = build(profile, where, part_params, firmware, fw_params)
+            ns["topics"], ns["present"] = [], True
+            self.members = {ns["board"]["name"]: ns}
         self.board_name = ns["board"]["name"]
         self.timebase, self.kernel, self.mcu = ns["timebase"], ns["kernel"], ns["mcu"]
         self.parts, self.firmware = ns["parts"], ns["firmware"]
@@ -22,6 +30,9 @@ class Simulation:
         self.wall_s = 0.0
         self._traces = []
         try:
+            for member in self.members.values():   # a system's per-board inputs (mcm1.velocity=10)
+                for name, value in member["topics"]:
+                    member["firmware"].publish(name, value)
             for name, value in topics:
                 self.publish(name, value)
         except McusimError:
@@ -97,9 +108,11 @@ class Simulation:
 
     def discard(self) -> None:
         """Drop the firmware's task coroutines (a simulation that will not run)."""
-        if self.mcu.rtos is not None:
-            for task in self.mcu.rtos.tasks:
-                task.coro.close()
+        for member in self.members.values():
+            rtos = member["mcu"].rtos
+            if rtos is not None:
+                for task in rtos.tasks:
+                    task.coro.close()
 
     def close(self) -> None:
         for tr in self._traces:
@@ -126,6 +139,12 @@ class Simulation:
         }
         if self.firmware is not None and hasattr(self.firmware, "summary"):
             out["firmware"] = self.firmware.summary()
+            for key in getattr(self.firmware, "SUMMARY_TOP", ()):   # rover: odometry at top level
+                if key in out["firmware"]:
+                    out[key] = out["firmware"].pop(key)
+        for part in self.parts.values():                             # rover: pose, battery_v
+            if hasattr(part, "summary_entries"):
+                out.update(part.summary_entries())
         return out
 
 

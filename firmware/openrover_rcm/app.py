@@ -1,0 +1,390 @@
+"""``rover_control``: the OpenRover robot controller (NuttX on the EDU-CIAA's LPC4337).
+
+Tasks (NuttX tasks on a 1 kHz system tick; priorities as numbers, higher = more urgent):
+
+* ``motor_control`` (priority 100, every ``control_period_ms``):
+  - at boot, identifies every motor module on I2C0 (WHO_AM_I, ``boot_retries`` attempts each),
+    enables the PID of each, and raises the motor-enable line **only if every module answered**;
+    otherwise the line stays low for good and the fault ``modules_missing`` names the absent ones
+    (there is no hot-plug: a module that appears later is not taken);
+  - each period: reads the E-stop input; computes the body command (zero while the E-stop is
+    pressed, after its release until a *new* command arrives, when commands have stopped arriving
+    for ``cmd_timeout_ms`` (the communication watchdog), and when the battery is critical);
+    ramps the body set point towards it at ``max_accel``/``max_yaw_accel`` (a step from rest
+    would drive every BTS7960 into its current limit, which the modules report as a driver
+    fault: the E-stop is the exception, its zero takes effect at once); inverse kinematics of
+    the layout, the wheel-speed limit, and one SETPOINT write per module;
+    reads every module's 16-bit POSITION, unwraps it and integrates the odometry.
+* ``battery_monitor`` (priority 50, every ``battery_period_ms``): one ADC0 conversion of CH1
+  (battery through the divider ``r_top``/``r_bottom``), a moving average over
+  ``battery_samples``, and the state machine NORMAL → LOW (< ``low_v``) → CRITICAL
+  (< ``critical_v``), each way back only above the threshold plus ``hysteresis_v``.
+* ``status`` (priority 40, every 50 ms): the buzzer pattern of the battery state (LOW: one 100 ms
+  beep every 5 s; CRITICAL: 200 ms on / 200 ms off; a missing module: three 100 ms beeps every
+  2 s), LED1 heartbeat, LED2 fault, LED3 motors enabled.
+
+Commands. The host's velocity command (``cmd_vel.linear`` m/s, ``cmd_vel.angular`` rad/s,
+``cmd_vel.lateral`` m/s for holonomic layouts) arrives in a mailbox (:meth:`cmd_vel_rx`), the seam
+where the MAVLink link on USART3 will deliver it; until then the host side of :meth:`publish`
+streams the last command at ``cmd_rate_hz`` (as mavros streams setpoints at 10–50 Hz), and
+``cmd_vel.stream=false`` stops the stream (what the watchdog is for). Each publish is a *new*
+command (a new id); the stream repeats the same id, which keeps the watchdog fed but does not
+clear an E-stop latch.
+
+The paper gives the structure, not the figures; every constant below is ours (``firmware.<name>``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from firmware.nuttx.lpc43_i2c import lpc43_i2c_init
+from firmware.openrover_mcm import protocol as P
+from firmware.openrover_rcm.board import CiaaBoard
+from firmware.openrover_rcm.kinematics import make_layout, saturate
+from firmware.openrover_rcm.odometry import Odometry, Unwrap16
+from mcusim.errors import ConfigError
+from mcusim.kernel import PRIO_INPUT
+
+DEFAULTS = {
+    "layout": "skid_steer",
+    "wheel_radius": 0.195,              # ElementAll: 0.39 m wheels
+    "track_width": 0.55,                # [I] see boards/elementall.toml
+    "chi": 1.5,                         # ICR expansion factor used by the odometry and the inverse
+    "wheel_distance": 0.25, "angles_deg": (90.0, 210.0, 330.0),   # omni
+    "lx": 0.2, "ly": 0.2,               # mecanum
+    "modules": (0x08, 0x09, 0x0A, 0x0B),  # I2C addresses in the layout's wheel order (FL, FR, RL, RR)
+    "counts_per_motor_rev": 2048, "gear_ratio": 50,
+    "max_wheel_speed": 4.0,             # rad/s at the wheel (no-load ≈ 4.8 rad/s at 12 V)
+    "max_accel": 0.5,                   # m/s² ramp of the body velocity set point
+    "max_yaw_accel": 1.0,               # rad/s² ramp of the yaw-rate set point
+    "i2c_frequency": 100_000,
+    "tick_hz": 1000,
+    "control_period_ms": 20,
+    "cmd_timeout_ms": 500,
+    "boot_retries": 3,
+    "boot_delay_ms": 100,               # the modules' bootloader + setup() before the first probe
+    "battery_period_ms": 100,
+    "battery_samples": 8,
+    "r_top": 33_000.0, "r_bottom": 6_800.0, "vref": 3.3, "battery_channel": 1,
+    "low_v": 11.9, "critical_v": 11.5, "hysteresis_v": 0.2,
+    "cmd_rate_hz": 20,
+    "cycles_control": 6000, "cycles_battery": 1500, "cycles_status": 300, "cycles_systick": 120,
+}
+LAYOUT_GEOMETRY = {"differential": ("wheel_radius", "track_width"),
+                   "skid_steer": ("wheel_radius", "track_width", "chi"),
+                   "omni": ("wheel_radius", "wheel_distance", "angles_deg"),
+                   "mecanum": ("wheel_radius", "lx", "ly")}
+NORMAL, LOW, CRITICAL = "normal", "low", "critical"
+BUZZER_PATTERNS = {   # (on ms, off ms) steps, repeated
+    LOW: ((100, 4900),),
+    CRITICAL: ((200, 200),),
+    "modules_missing": ((100, 100), (100, 100), (100, 1500)),
+}
+HOST_INPUTS = {
+    "cmd_vel.linear": "forward speed, m/s",
+    "cmd_vel.angular": "yaw rate, rad/s (counter-clockwise positive)",
+    "cmd_vel.lateral": "sideways speed, m/s (omni and mecanum layouts)",
+    "cmd_vel.stream": "true/false: the host keeps re-sending the command at cmd_rate_hz",
+}
+
+
+class RoverControl:
+    SUMMARY_TOP = ("odometry",)
+
+    def __init__(self, mcu, **params):
+        unknown = set(params) - set(DEFAULTS)
+        if unknown:
+            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
+                              f"(known: {', '.join(sorted(DEFAULTS))})")
+        self.p = p = {**DEFAULTS, **params}
+        kind = str(p["layout"]).replace("-", "_")
+        if kind not in LAYOUT_GEOMETRY:
+            raise ConfigError(f"firmware.layout = {p['layout']!r}: expected one of {', '.join(LAYOUT_GEOMETRY)}")
+        try:
+            self.layout = make_layout(kind, **{k: p[k] for k in LAYOUT_GEOMETRY[kind]})
+        except ValueError as exc:
+            raise ConfigError(f"firmware: {exc}") from None
+        self.modules = [int(a) for a in p["modules"]]
+        if len(self.modules) != self.layout.wheels:
+            raise ConfigError(f"firmware.modules: {len(self.modules)} addresses for a {kind} layout "
+                              f"of {self.layout.wheels} wheels")
+        self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
+        self.rtos.tick_hz = p["tick_hz"]
+        self.board = CiaaBoard(mcu)
+        self.counts_per_wheel_rev = p["counts_per_motor_rev"] * p["gear_ratio"]
+        # state
+        self.found: list[int] = []
+        self.missing: list[int] = []
+        self.motors_enabled = False
+        self.faults: set[str] = set()
+        self.module_status = [0] * len(self.modules)
+        self.estop_pressed = False
+        self.estop_latched = False
+        self._estop_cmd_id = None
+        self.watchdog_tripped = False
+        self.cmd = (0.0, 0.0, 0.0)
+        self.cmd_id = 0
+        self.cmd_tick = None
+        self.body_target = (0.0, 0.0, 0.0)
+        self.wheel_setpoints = [0] * len(self.modules)     # counts/s sent to the modules
+        self.unwrap = [Unwrap16() for _ in self.modules]
+        self.odometry = Odometry(self.layout, self.counts_per_wheel_rev)
+        self.i2c_errors = 0
+        self.battery_v = None
+        self.battery_state = NORMAL
+        self.battery_log: list[tuple[int, str]] = []        # (tick, state) transitions
+        self._samples: list[float] = []
+        self.buzzer_on = False
+        self.buzzer_log: list[tuple[int, int]] = []         # (kernel tick, level) changes
+        self._host = {"linear": 0.0, "angular": 0.0, "lateral": 0.0, "stream": True, "id": 0}
+        self._stream_ev = None
+        self.i2c = None
+        self.rtos.create_task("motor_control", self.motor_control(), priority=100)
+        self.rtos.create_task("battery_monitor", self.battery_monitor(), priority=50)
+        self.rtos.create_task("status", self.status_task(), priority=40)
+
+    # --- start-up (nx_start → board init → rover_control main) -------------------------------
+    def _ms(self, ms: int) -> int:
+        return max(1, round(ms * self.p["tick_hz"] / 1000))
+
+    def board_init(self) -> None:
+        b = self.board
+        self.cpu.vector(-1, self.rtos.systick_handler, cost=self.p["cycles_systick"])
+        b.systick_init(int(self.cpu.clock.hz), self.p["tick_hz"])
+        b.gpio_config_output("MOTOR_EN", 0)
+        b.gpio_config_output("BUZZER", 0)
+        for led in ("LED1", "LED2", "LED3"):
+            b.gpio_config_output(led, 0)
+        b.gpio_config_input("ESTOP")
+        b.adc_init()
+        self.i2c = lpc43_i2c_init(self.mcu, frequency=self.p["i2c_frequency"])
+
+    # --- motor-control module -------------------------------------------------------------------
+    async def identify_modules(self) -> None:
+        for addr in self.modules:
+            for _ in range(self.p["boot_retries"]):
+                ret, data = await self.i2c.write_read(addr, bytes([P.BY_NAME["WHO_AM_I"].addr]), 1)
+                if ret == 0 and data and data[0] == P.WHO_AM_I_VALUE:
+                    self.found.append(addr)
+                    break
+                await self.rtos.delay(self._ms(10))
+            else:
+                self.missing.append(addr)
+        if self.missing:
+            self.faults.add("modules_missing")
+            return
+        for addr in self.modules:     # PID on, faults cleared, set point 0
+            await self._write_reg(addr, "SETPOINT", 0)
+            await self._write_reg(addr, "CONTROL", P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS)
+        self.board.gpio_write("MOTOR_EN", 1)
+        self.motors_enabled = True
+
+    async def _write_reg(self, addr: int, name: str, value) -> int:
+        reg = P.BY_NAME[name]
+        ret = await self.i2c.write(addr, bytes([reg.addr]) + P.encode(name, value))
+        if ret != 0:
+            self.i2c_errors += 1
+        return ret
+
+    async def _read_reg(self, addr: int, name: str):
+        reg = P.BY_NAME[name]
+        ret, data = await self.i2c.write_read(addr, bytes([reg.addr]), reg.size)
+        if ret != 0 or len(data) != reg.size:
+            self.i2c_errors += 1
+            return None
+        return P.decode(name, data)
+
+    def command_target(self) -> tuple:
+        """The body velocity to drive now, after the E-stop, watchdog and battery rules."""
+        now = self.rtos.tick_count
+        self.estop_pressed = self.board.gpio_read("ESTOP") == 0
+        if self.estop_pressed:
+            self.estop_latched, self._estop_cmd_id = True, self.cmd_id
+        elif self.estop_latched and self.cmd_id != self._estop_cmd_id:
+            self.estop_latched = False            # a new command after the release
+        fresh = self.cmd_tick is not None and now - self.cmd_tick <= self._ms(self.p["cmd_timeout_ms"])
+        self.watchdog_tripped = self.cmd_tick is not None and not fresh
+        if self.estop_latched or not fresh or self.battery_state == CRITICAL or not self.motors_enabled:
+            return (0.0, 0.0, 0.0)
+        return self.cmd
+
+    def ramp(self, current, target) -> tuple:
+        """Move the body set point towards ``target`` by at most one period's acceleration."""
+        if self.estop_latched:
+            return (0.0, 0.0, 0.0)
+        dt = self.p["control_period_ms"] / 1000
+        limits = (self.p["max_accel"] * dt, self.p["max_accel"] * dt, self.p["max_yaw_accel"] * dt)
+        return tuple(c + max(-lim, min(lim, t - c)) for c, t, lim in zip(current, target, limits))
+
+    def wheel_counts(self, target) -> list[int]:
+        vx, vy, wz = target
+        wheels = self.layout.inverse(vx, vy if self.layout.holonomic else 0.0, wz)
+        wheels = saturate(wheels, self.p["max_wheel_speed"])
+        k = self.p["gear_ratio"] * self.p["counts_per_motor_rev"] / (2 * math.pi)
+        return [round(w * k) for w in wheels]
+
+    async def motor_control(self):
+        self.board_init()
+        await self.cpu.cycles(2000)
+        await self.rtos.delay(self._ms(self.p["boot_delay_ms"]))
+        await self.identify_modules()
+        period = self._ms(self.p["control_period_ms"])
+        wake = self.rtos.tick_count
+        n = 0
+        while True:
+            wake += period
+            await self.rtos.delay_until(wake)
+            self.body_target = self.ramp(self.body_target, self.command_target())
+            await self.cpu.cycles(self.p["cycles_control"])
+            if not self.motors_enabled:
+                continue
+            setpoints = self.wheel_counts(self.body_target)
+            for i, addr in enumerate(self.modules):
+                if await self._write_reg(addr, "SETPOINT", setpoints[i]) == 0:
+                    self.wheel_setpoints[i] = setpoints[i]
+            counts = []
+            for i, addr in enumerate(self.modules):
+                raw = await self._read_reg(addr, "POSITION")
+                counts.append(self.unwrap[i].update(raw) if raw is not None else self.unwrap[i].count)
+            self.odometry.update(counts)
+            n += 1
+            if n % 10 == 0:       # module status every 10 periods
+                for i, addr in enumerate(self.modules):
+                    st = await self._read_reg(addr, "STATUS")
+                    if st is not None:
+                        self.module_status[i] = st
+                        if st & (P.ST_STALL | P.ST_OVERCURRENT):
+                            self.faults.add(f"module_{addr:#04x}_fault")
+
+    # --- battery monitor ---------------------------------------------------------------------------
+    def battery_volts(self, code: int) -> float:
+        p = self.p
+        return code * p["vref"] / 1024 * (p["r_top"] + p["r_bottom"]) / p["r_bottom"]
+
+    def battery_update(self, v: float) -> str:
+        p, s = self.p, self.battery_state
+        if s == NORMAL and v < p["low_v"]:
+            s = LOW
+        if s in (NORMAL, LOW) and v < p["critical_v"]:
+            s = CRITICAL
+        elif s == CRITICAL and v > p["critical_v"] + p["hysteresis_v"]:
+            s = LOW
+        if s == LOW and v > p["low_v"] + p["hysteresis_v"]:
+            s = NORMAL
+        if s != self.battery_state:
+            self.battery_state = s
+            self.battery_log.append((self.mcu.kernel.now, s))
+        return s
+
+    async def battery_monitor(self):
+        await self.rtos.delay(1)          # after board_init (motor_control runs first)
+        period = self._ms(self.p["battery_period_ms"])
+        wake = self.rtos.tick_count
+        while True:
+            code = await self.board.adc_read(self.rtos, self.p["battery_channel"])
+            self._samples = (self._samples + [self.battery_volts(code)])[-self.p["battery_samples"]:]
+            self.battery_v = sum(self._samples) / len(self._samples)
+            self.battery_update(self.battery_v)
+            await self.cpu.cycles(self.p["cycles_battery"])
+            wake += period
+            await self.rtos.delay_until(wake)
+
+    # --- buzzer and LEDs ------------------------------------------------------------------------
+    def _pattern(self):
+        if self.battery_state in (LOW, CRITICAL):
+            return BUZZER_PATTERNS[self.battery_state]
+        if "modules_missing" in self.faults:
+            return BUZZER_PATTERNS["modules_missing"]
+        return None
+
+    def _buzz(self, on: bool) -> None:
+        if on != self.buzzer_on:
+            self.buzzer_on = on
+            self.board.gpio_write("BUZZER", on)
+            self.buzzer_log.append((self.mcu.kernel.now, int(on)))
+
+    async def status_task(self):
+        await self.rtos.delay(1)
+        step = self._ms(50)
+        wake, t_ms, beat = self.rtos.tick_count, 0, 0
+        current, phase_end, idx, on = None, 0, 0, False
+        while True:
+            pattern = self._pattern()
+            if pattern is not current:
+                current, idx, phase_end, on = pattern, 0, t_ms, False
+            if current is None:
+                self._buzz(False)
+            elif t_ms >= phase_end:
+                on_ms, off_ms = current[idx % len(current)]
+                on = not on
+                if on:
+                    phase_end = t_ms + on_ms
+                else:
+                    phase_end, idx = t_ms + off_ms, idx + 1
+                self._buzz(on)
+            beat += 1
+            self.board.gpio_write("LED1", (beat // 10) % 2)
+            self.board.gpio_write("LED2", bool(self.faults) or self.battery_state != NORMAL)
+            self.board.gpio_write("LED3", self.motors_enabled)
+            await self.cpu.cycles(self.p["cycles_status"])
+            wake += step
+            t_ms += 50
+            await self.rtos.delay_until(wake)
+
+    # --- command mailbox (the seam of the future MAVLink link) ----------------------------------
+    def cmd_vel_rx(self, vx: float, vy: float, wz: float, cmd_id: int) -> None:
+        self.cmd = (float(vx), float(vy), float(wz))
+        self.cmd_id = cmd_id
+        self.cmd_tick = self.rtos.tick_count
+
+    # --- host side (not firmware) ------------------------------------------------------------------
+    def publish(self, name: str, value) -> None:
+        key = name.removeprefix("cmd_vel.") if name.startswith("cmd_vel.") else None
+        if key not in ("linear", "angular", "lateral", "stream"):
+            raise ConfigError(f"no input {name!r}; the controller takes: " +
+                              "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
+        h = self._host
+        if key == "stream":
+            h["stream"] = value in (True, 1, "true", "1")
+        else:
+            try:
+                h[key] = float(value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"{name}={value!r}: expected a number") from None
+            if key == "lateral" and h[key] and not self.layout.holonomic:
+                raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
+            h["id"] += 1
+        if self._stream_ev is not None:
+            self._stream_ev.cancel()
+            self._stream_ev = None
+        self._send()
+
+    def _send(self) -> None:
+        h = self._host
+        if not h["stream"]:
+            return
+        self.cmd_vel_rx(h["linear"], h["lateral"], h["angular"], h["id"])
+        kernel = self.mcu.kernel
+        period = kernel.timebase.ticks(1 / self.p["cmd_rate_hz"], rounding=True)
+        self._stream_ev = kernel.after(period, self._send, prio=PRIO_INPUT)
+
+    def topic(self, name: str):
+        values = {"odometry": dict(zip(("x", "y", "yaw"), self.odometry.pose)),
+                  "battery_v": self.battery_v, "battery_state": self.battery_state,
+                  "motors_enabled": self.motors_enabled, "estop": self.estop_pressed,
+                  "watchdog": self.watchdog_tripped, "wheel_setpoints": list(self.wheel_setpoints)}
+        if name not in values:
+            raise ConfigError(f"no output {name!r}; the controller reports {', '.join(values)}")
+        return values[name]
+
+    def summary(self) -> dict:
+        x, y, yaw = self.odometry.pose
+        return {"odometry": {"x": x, "y": y, "yaw": yaw},
+                "layout": self.layout.kind,
+                "modules_found": [f"{a:#04x}" for a in self.found],
+                "modules_missing": [f"{a:#04x}" for a in self.missing],
+                "motors_enabled": self.motors_enabled,
+                "battery_measured_v": self.battery_v, "battery_state": self.battery_state,
+                "estop_latched": self.estop_latched, "watchdog_tripped": self.watchdog_tripped,
+                "faults": sorted(self.faults), "i2c_errors": self.i2c_errors}

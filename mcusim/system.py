@@ -1,0 +1,176 @@
+"""System profiles: several boards on one event queue and one time base, plus shared plant.
+
+A system profile (``boards/elementall.toml``) has a ``[system]`` table instead of ``[board]``::
+
+    [system]
+    name = "elementall"
+    main = "rcm"                      # the board whose firmware takes the system's inputs
+
+    [[member]]                        # one board instance; its parts become "mcm1.motor" ...
+    name = "mcm1"
+    board = "pro-mini"
+    plant = true                      # false: the board without its own [[part]]/[pins]/[analog]
+    set = { "firmware.i2c_address" = 0x08 }   # --set style overrides for this instance
+
+    [links]                           # a system part's output net drives board part terminals
+    "estop.enable_out" = ["mcm1.ibt2.R_EN", "mcm1.ibt2.L_EN"]
+
+    [pins]                            # board pins wired to system part terminals
+    "rcm.GPIO3_3" = "estop.enable_in"
+
+    [[part]]                          # system-level plant; parameters may name board parts
+    name = "body"
+    kind = "rover-body"
+    motors = ["mcm1.motor", "mcm2.motor"]
+
+    [analog]                          # a board's analog input follows a system part
+    "rcm.CH1" = "vbat_divider"
+
+The time base is the lcm of every member's clocks (204 MHz and 16 MHz give 816 MHz). I2C buses
+with the same name in several boards are one bus. ``--set`` keys: ``<member>.present=false``
+leaves that board unpowered (built without firmware: its TWI does not answer, its pins stay
+undriven, its motor and bridge stay in the plant); ``<member>.<key>`` is the member's own
+``--set`` key (``mcm2.motor.R=0.2``, ``mcm1.firmware.kp=0.03``, ``mcm1.velocity=10``);
+``<part>.<param>`` sets a system part's parameter (``battery.count=2``); ``firmware.<x>`` is a
+parameter of the main board's firmware; any other key is an input of the main firmware
+(``cmd_vel.linear=0.5``).
+"""
+
+from __future__ import annotations
+
+from .board import build, build_parts, board_clocks, read_profile, split_overrides
+from .errors import ConfigError
+from .kernel import Kernel
+from .signals import Net
+from .time import TimeBase
+
+
+def is_system(profile: dict) -> bool:
+    return "system" in profile
+
+
+def _truth(value, key):
+    if isinstance(value, bool):
+        return value
+    if value in (0, 1):
+        return bool(value)
+    raise ConfigError(f"--set {key}={value!r}: expected true or false")
+
+
+def split_system_overrides(profile: dict, overrides: dict, where: str):
+    members = {m["name"]: {} for m in profile.get("member", [])}
+    present = {name: True for name in members}
+    parts = {p["name"]: {} for p in profile.get("part", [])}
+    main_fw, topics = {}, []
+    for key, value in overrides.items():
+        head, dot, rest = key.partition(".")
+        if dot and head in members:
+            if rest == "present":
+                present[head] = _truth(value, key)
+            else:
+                members[head][rest] = value
+        elif dot and head in parts:
+            parts[head][rest] = value
+        elif dot and head == "firmware":
+            main_fw[rest] = value
+        else:
+            topics.append((key, value))
+    return members, present, parts, main_fw, topics
+
+
+def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool) -> dict:
+    system = profile["system"]
+    specs = profile.get("member", [])
+    if not specs:
+        raise ConfigError(f"{where}: a system needs at least one [[member]]")
+    names = [m.get("name") for m in specs]
+    if len(set(names)) != len(names) or None in names:
+        raise ConfigError(f"{where}: every [[member]] needs a distinct name")
+    main = system.get("main", names[0])
+    if main not in names:
+        raise ConfigError(f"{where}: [system] main = {main!r} is not a member ({', '.join(names)})")
+    member_sets, present, part_params, main_fw, topics = split_system_overrides(profile, overrides, where)
+    if not present[main]:
+        raise ConfigError(f"--set {main}.present=false: {main} is the system's main board")
+
+    member_profiles = {}
+    clocks = []
+    for m in specs:
+        if "board" not in m:
+            raise ConfigError(f"{where}: member {m['name']}: missing board = \"...\"")
+        prof, pwhere = read_profile(m["board"])
+        if is_system(prof):
+            raise ConfigError(f"{where}: member {m['name']}: {m['board']} is a system, not a board")
+        if m.get("plant", True) is False:   # the board alone; the system provides its plant
+            prof = {k: v for k, v in prof.items() if k not in ("part", "pins", "analog")}
+        member_profiles[m["name"]] = (prof, pwhere)
+        clocks += board_clocks(prof)
+    kernel = Kernel(TimeBase(clocks))
+
+    # nets that system parts drive into board parts: created first, handed to both sides
+    link_nets, external = {}, {name: {} for name in names}
+    for source, targets in profile.get("links", {}).items():
+        net = link_nets[source] = Net(source, pull=0)
+        for target in ([targets] if isinstance(targets, str) else targets):
+            member, _, rest = target.partition(".")
+            part, _, term = rest.partition(".")
+            if member not in external or not part or not term:
+                raise ConfigError(f"{where}: [links] {source}: {target!r} is not member.part.TERMINAL")
+            external[member].setdefault(part, {})[term] = net
+
+    buses: dict = {}
+    members = {}
+    for m in specs:
+        name = m["name"]
+        prof, pwhere = member_profiles[name]
+        sets = dict(m.get("set", {}))
+        sets.update(member_sets[name])
+        p_parts, p_fw, p_topics = split_overrides(prof, sets)
+        if name == main:
+            p_fw.update(main_fw)
+        fw_on = with_firmware and present[name]
+        if not fw_on:
+            p_fw, p_topics = {}, []
+        ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external[name])
+        ns["present"] = present[name]
+        ns["topics"] = p_topics
+        members[name] = ns
+
+    def lookup(dotted):
+        member, _, part = dotted.partition(".")
+        return members.get(member, {}).get("parts", {}).get(part)
+
+    # system parts: terminals from [pins] (board pins) and [links] (their own output nets)
+    wiring: dict = {}
+    for pin, target in profile.get("pins", {}).items():
+        member, _, pin_name = pin.partition(".")
+        if member not in members:
+            raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
+        part, _, term = target.partition(".")
+        wiring.setdefault(part, {})[term] = members[member]["mcu"].pin(pin_name)
+    for source, net in link_nets.items():
+        part, _, term = source.partition(".")
+        wiring.setdefault(part, {})[term.upper()] = net
+    sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
+
+    for target, source in profile.get("analog", {}).items():
+        member, _, net_name = target.partition(".")
+        mcu = members.get(member, {}).get("mcu")
+        if mcu is None or net_name not in mcu.analog:
+            raise ConfigError(f"{where}: [analog] {target!r}: no analog input {net_name!r} on {member!r}")
+        part_name, _, term = source.partition(".")
+        src = sys_parts.get(part_name) or lookup(part_name)
+        if term:
+            src = getattr(src, term.lower(), None)
+        if src is None or not hasattr(src, "voltage"):
+            raise ConfigError(f"{where}: [analog] {target} = {source!r}: no such analog output")
+        mcu.analog[net_name].source = src.voltage
+
+    parts = dict(sys_parts)
+    for name, ns in members.items():
+        for pname, part in ns["parts"].items():
+            parts[f"{name}.{pname}"] = part
+    m = members[main]
+    return {"timebase": kernel.timebase, "kernel": kernel, "mcu": m["mcu"], "parts": parts,
+            "firmware": m["firmware"], "board": {"name": system["name"], **system}, "profile": profile,
+            "members": members, "buses": buses, "main": main, "topics": topics}

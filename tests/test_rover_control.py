@@ -1,0 +1,102 @@
+"""rover_control on the EDU-CIAA alone (bench set-up: battery, divider, E-stop, no modules):
+boot without modules, the battery monitor's thresholds, hysteresis and buzzer patterns under sag."""
+
+import pytest
+
+import mcusim
+from mcusim.errors import ConfigError
+from mcusim.plant.battery import ConstantLoad
+
+R_SERIES = 0.020 / 2 + 0.010      # two SLA in parallel (R0 = 20 mΩ each) + 10 mΩ wiring
+
+
+def bench(soc=1.0, **over):
+    sim = mcusim.load("ciaa-edu", overrides={"battery.soc": soc, **over})
+    load = ConstantLoad(sim.kernel, 0.0)
+    sim.part("battery").connect(load)
+    buzzer = []
+    sim.pin("GPIO3_4").listen(lambda n: buzzer.append((sim.time_s, n.level)))
+    return sim, load, buzzer
+
+
+def test_board_alone_finds_no_module_and_keeps_the_motor_line_low():
+    sim, _, _ = bench()
+    en = sim.pin("GPIO3_3")
+    rises = []
+    en.listen(lambda n: rises.append(sim.time_s) if n.level else None)
+    sim.run(seconds="0.5s")
+    s = sim.summary()
+    assert s["firmware"]["modules_missing"] == ["0x08", "0x09", "0x0a", "0x0b"]
+    assert "modules_missing" in s["firmware"]["faults"]
+    assert not rises and en.level == 0
+    # every WHO_AM_I probe was NACKed on the bus: boot_retries per module
+    assert sim.firmware.i2c_errors == 0 and sim.firmware.motors_enabled is False
+
+
+def test_battery_reading_is_the_divider_code_scaled_back():
+    """12.75 V (full, rested) -> 2.1755 V at CH1 -> code floor(2.1755*1024/3.3) = 675 -> 12.737 V."""
+    sim, _, _ = bench(soc=1.0)
+    sim.run(seconds="1s")
+    code = int(12.75 * 6800 / 39800 * 1024 / 3.3)
+    assert code == 675
+    assert sim.firmware.battery_v == pytest.approx(code * 3.3 / 1024 * 39800 / 6800, abs=1e-12)
+    assert sim.firmware.battery_state == "normal"
+
+
+def test_battery_alarms_at_the_thresholds_under_sag_with_hysteresis_and_distinct_buzzer_patterns():
+    # OCV = 11.65 + 1.10*soc = 11.95 V: above low_v = 11.9 at rest, below low_v + hysteresis = 12.1
+    soc = 0.3 / 1.1
+    sim, load, buzzer = bench(soc=soc)
+    fw = sim.firmware
+    sim.run(seconds="1s")
+    assert fw.battery_state == "normal"
+    # 10 A: sag 0.2 V -> 11.75 V, between critical (11.5) and low (11.9)
+    load.set(10.0)
+    t_low = sim.time_s
+    assert 11.5 < 11.95 - R_SERIES * 10.0 < 11.9
+    sim.run(seconds="1.2s")
+    assert fw.battery_state == "low"
+    (t_alarm, state), = fw.battery_log
+    t_alarm /= sim.timebase.base_hz
+    # the moving average of 8 samples at 100 ms crosses the threshold within the window
+    assert state == "low" and t_low < t_alarm <= t_low + 0.9
+    # LOW: one 100 ms beep every 5 s (before it, the missing modules' three-beep pattern played)
+    sim.run(seconds="5.5s")
+    on = [t for t, lv in buzzer if lv and t >= t_alarm]
+    off = [t for t, lv in buzzer if not lv and t > t_alarm]
+    assert len(on) >= 2 and off[0] - on[0] == pytest.approx(0.100, abs=1e-6)
+    assert on[1] - on[0] == pytest.approx(5.0, abs=1e-6)
+    # 30 A: sag 0.6 V -> 11.35 V < critical: CRITICAL, 200 ms on / 200 ms off
+    load.set(30.0)
+    assert 11.95 - R_SERIES * 30.0 < 11.5
+    sim.run(seconds="1.5s")
+    assert fw.battery_state == "critical"
+    buzzer.clear()
+    sim.run(seconds="1s")
+    on = [t for t, lv in buzzer if lv]
+    assert [round(b - a, 6) for a, b in zip(on, on[1:])] == [0.4] * (len(on) - 1) and len(on) >= 2
+    # load off: back above critical + hysteresis (11.7) but below low + hysteresis (12.1): LOW, not normal
+    load.set(0.0)
+    sim.run(seconds="2s")
+    assert fw.battery_state == "low"
+    assert [s for _, s in fw.battery_log] == ["low", "critical", "low"]
+
+
+def test_missing_modules_beep_three_times_every_2s_and_a_full_battery_stays_normal():
+    sim, _, buzzer = bench(soc=1.0)
+    sim.run(seconds="2.5s")
+    assert sim.firmware.battery_state == "normal"
+    on = [t for t, lv in buzzer if lv]
+    steps = [round(b - a, 6) for a, b in zip(on, on[1:])]
+    assert steps[:3] == [0.2, 0.2, 1.6]          # (100 on, 100 off) x2, 100 on, 1500 off
+    assert sim.part("battery").min_voltage == pytest.approx(12.75)
+
+
+def test_unknown_controller_input_is_a_clear_error():
+    with pytest.raises(ConfigError, match="cmd_vel.linear"):
+        mcusim.load("ciaa-edu", overrides={"cmd_vel.forward": 0.5})
+
+
+def test_lateral_command_is_refused_for_a_skid_steer_rover():
+    with pytest.raises(ConfigError, match="cannot move sideways"):
+        mcusim.load("ciaa-edu", overrides={"cmd_vel.lateral": 0.2})
