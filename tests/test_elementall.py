@@ -1,0 +1,131 @@
+"""The whole ElementAll rover: the EDU-CIAA running rover_control, four Pro Mini modules on one
+I2C bus, the skid-steer body, the SLA bank and the E-stop, on one event queue.
+
+These runs are the expensive ones of the suite (about 0.06-0.1 simulated seconds per wall
+second), so each checks several things and drives slowly where speed does not matter."""
+
+import math
+
+import pytest
+
+import mcusim
+
+R = 0.195
+CPR_WHEEL = 2048 * 50
+CTRL = 0.020                     # rover_control period
+
+
+def rover(**over):
+    return mcusim.load("elementall", overrides=over)
+
+
+def enable_net(sim):
+    return sim.part("estop").enable_out
+
+
+def test_boot_identifies_the_four_modules_over_i2c_and_then_enables_the_motor_line():
+    sim = rover(**{"cmd_vel.linear": 0.0})
+    en = sim.members["rcm"]["mcu"].pin("GPIO3_3")
+    rises = []
+    en.listen(lambda n: rises.append(sim.time_s) if n.level else None)
+    sim.run(seconds="0.3s")
+    fw = sim.firmware
+    assert fw.found == [0x08, 0x09, 0x0A, 0x0B] and fw.missing == [] and fw.faults == set()
+    assert len(rises) == 1 and 0.1 < rises[0] < 0.2   # after the 100 ms boot delay and the probes
+    assert enable_net(sim).level == 1                  # through the released E-stop to every INH
+    for i in range(1, 5):
+        assert sim.members[f"mcm{i}"]["firmware"].status & 0x01      # PID enabled over I2C
+    # every module saw its WHO_AM_I read: the bus carried the five MCUs on one time base
+    assert sim.timebase.base_hz == 816_000_000
+
+
+def test_boot_with_one_module_missing_never_enables_the_motors_and_reports_which():
+    sim = rover(**{"mcm3.present": False, "cmd_vel.linear": 0.3})
+    en = sim.members["rcm"]["mcu"].pin("GPIO3_3")
+    rises = []
+    en.listen(lambda n: rises.append(sim.time_s) if n.level else None)
+    sim.run(seconds="0.6s")
+    s = sim.summary()
+    assert s["firmware"]["modules_missing"] == ["0x0a"]
+    assert s["firmware"]["modules_found"] == ["0x08", "0x09", "0x0b"]
+    assert "modules_missing" in s["firmware"]["faults"] and s["firmware"]["motors_enabled"] is False
+    assert not rises and enable_net(sim).level == 0
+    for name, m in s["motors"].items():
+        assert m["angle_rad"] == 0.0, name          # no wheel moved
+    assert sim.members["mcm3"]["firmware"] is None  # the absent module has no firmware running
+
+
+def test_estop_cuts_the_drive_in_hardware_and_the_setpoints_stay_zero_until_a_new_command():
+    sim = rover(**{"cmd_vel.linear": 0.15})
+    fw = sim.firmware
+    sim.run(seconds="0.8s")
+    assert all(sp > 0 for sp in fw.wheel_setpoints)
+    estop = sim.part("estop")
+    estop.press()
+    assert enable_net(sim).level == 0                       # hardware cut at once
+    bridges = [sim.part(f"mcm{i}.ibt2") for i in range(1, 5)]
+    assert all(b.legs == ("Z", "Z") for b in bridges)        # INH low: both half bridges off
+    sim.run(seconds=CTRL * 2)
+    assert fw.estop_pressed and fw.estop_latched and fw.wheel_setpoints == [0, 0, 0, 0]
+    estop.release()
+    sim.run(seconds="0.3s")                                   # the host keeps streaming the old command
+    assert enable_net(sim).level == 1 and not fw.estop_pressed
+    assert fw.estop_latched and fw.wheel_setpoints == [0, 0, 0, 0]
+    sim.publish("cmd_vel.linear", 0.1)                        # a new command releases the latch
+    sim.run(seconds=CTRL * 3)
+    assert not fw.estop_latched and all(sp > 0 for sp in fw.wheel_setpoints)
+
+
+def test_watchdog_zeroes_the_setpoints_when_commands_stop_arriving():
+    sim = rover(**{"cmd_vel.linear": 0.1})
+    fw = sim.firmware
+    sim.run(seconds="0.5s")
+    assert all(sp > 0 for sp in fw.wheel_setpoints) and not fw.watchdog_tripped
+    sim.publish("cmd_vel.stream", False)                      # the host goes silent
+    t_last = fw.cmd_tick / fw.p["tick_hz"]
+    sim.run(seconds="0.45s")
+    assert not fw.watchdog_tripped                             # within cmd_timeout_ms
+    sim.run(seconds="0.2s")
+    assert fw.watchdog_tripped
+    # the body set point then ramps down at max_accel: 0.1 m/s in 0.2 s, then zero set points
+    sim.run(seconds="0.25s")
+    assert fw.wheel_setpoints == [0, 0, 0, 0] and fw.body_target == (0.0, 0.0, 0.0)
+    assert sim.time_s - t_last > fw.p["cmd_timeout_ms"] / 1000
+
+
+def _lag_bound(speed):
+    """Odometry is sampled once per control period and reads the four POSITION registers one
+    after the other over I2C (about 2.3 ms at 100 kHz): at the end of a run it lags the true pose
+    by at most one period plus the read time, i.e. speed x 22.3 ms; encoder quantisation adds
+    2*pi*r/102400 = 12 um per wheel."""
+    return speed * (CTRL + 0.0023) + 2 * math.pi * R / CPR_WHEEL
+
+
+def test_odometry_after_a_straight_run_and_after_a_turn_in_place_is_within_the_sampling_bound():
+    # straight: 0.3 m/s for 2 s (ramped at 0.5 m/s^2)
+    sim = rover(**{"cmd_vel.linear": 0.3})
+    sim.run(seconds="2s")
+    s = sim.summary()
+    odo, pose = s["odometry"], s["pose"]
+    assert pose["x"] > 0.35 and abs(pose["yaw"]) < 0.02
+    assert abs(odo["x"] - pose["x"]) <= _lag_bound(0.3)
+    assert abs(odo["y"] - pose["y"]) <= _lag_bound(0.3)
+    assert abs(odo["yaw"] - pose["yaw"]) <= _lag_bound(0.3) * 2 / (1.5 * 0.55) + 1e-3
+    assert s["firmware"]["faults"] == [] and s["battery_min_v"] < 12.7   # the bank sagged while accelerating
+
+
+def test_odometry_of_a_turn_in_place_matches_the_icr_model_and_shows_the_uncalibrated_error():
+    sim = rover(**{"cmd_vel.angular": 0.5})
+    sim.run(seconds="1.6s")
+    s = sim.summary()
+    odo, pose = s["odometry"], s["pose"]
+    assert pose["yaw"] > 0.4 and math.hypot(pose["x"], pose["y"]) < 0.01
+    # the firmware's chi equals the body's: the yaw estimate lags only by the sampling bound
+    assert abs(odo["yaw"] - pose["yaw"]) <= 0.5 * (CTRL + 0.0023) + 2 * (2 * math.pi / CPR_WHEEL) * R / 0.825
+    # with the geometric track (chi = 1) the same counts give chi times the yaw (Mandow 2007)
+    fw = sim.firmware
+    counts = [u.count for u in fw.unwrap]
+    dphi = [c * 2 * math.pi / CPR_WHEEL for c in counts]
+    left, right = (dphi[0] + dphi[2]) / 2, (dphi[1] + dphi[3]) / 2
+    yaw_chi1 = R * (right - left) / 0.55
+    assert yaw_chi1 == pytest.approx(1.5 * odo["yaw"], rel=1e-9)
