@@ -29,6 +29,7 @@ class Simulation:
         self.profile = profile
         self.wall_s = 0.0
         self._traces = []
+        self._closers = []
         try:
             for member in self.members.values():   # a system's per-board inputs (mcm1.velocity=10)
                 for name, value in member["topics"]:
@@ -89,6 +90,24 @@ class Simulation:
     def topic(self, name: str):
         return self._fw().topic(name)
 
+    def connect_serial(self, uart: str, endpoint="pty", member: str | None = None):
+        """Connect a UART (``"USART2"``) to a host endpoint: ``"pty"`` (a pseudo terminal; its
+        ``path`` is what pyserial or pymavlink opens), ``"buffer"`` (in memory: ``.sent``,
+        ``.feed()``), or an endpoint object. Returns the endpoint."""
+        from .hostserial import BufferEndpoint, PtyEndpoint
+        mcu = self.members[member]["mcu"] if member else self.mcu
+        periph = mcu.periph.get(uart)
+        if periph is None or not hasattr(periph, "connect"):
+            uarts = [n for n, p in mcu.periph.items() if hasattr(p, "connect") and hasattr(p, "receive")]
+            raise ConfigError(f"no UART {uart!r} on {mcu.name}; UARTs: {', '.join(uarts) or 'none'}")
+        if endpoint == "pty":
+            endpoint = PtyEndpoint()
+            self._closers.append(endpoint.close)
+        elif endpoint == "buffer":
+            endpoint = BufferEndpoint()
+        periph.connect(endpoint)
+        return endpoint
+
     def part(self, name: str):
         try:
             return self.parts[name]
@@ -118,6 +137,9 @@ class Simulation:
         for tr in self._traces:
             tr.close(self.kernel.now)
         self._traces.clear()
+        for fn in self._closers:
+            fn()
+        self._closers.clear()
 
     # --- summary ------------------------------------------------------------------------------------
     def summary(self) -> dict:

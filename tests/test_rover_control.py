@@ -100,3 +100,43 @@ def test_unknown_controller_input_is_a_clear_error():
 def test_lateral_command_is_refused_for_a_skid_steer_rover():
     with pytest.raises(ConfigError, match="cannot move sideways"):
         mcusim.load("ciaa-edu", overrides={"cmd_vel.lateral": 0.2})
+
+
+def test_console_lines_leave_usart2_at_115200_baud_back_to_back():
+    """syslog goes out through the THRE-interrupt driver: 8N1 frames of exactly 10 bits at the
+    LPCOpen divisor (DL 83, DIVADDVAL 5, MULVAL 15: 53120/3 PCLK cycles per frame), back to back."""
+    from fractions import Fraction
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART2", "buffer")
+    sim.run(seconds="0.5s")
+    text = bytes(ep.sent).decode()
+    assert text.splitlines()[:2] == ["rover_control: layout skid_steer, 4 motor modules on I2C0",
+                                     "rover_control: motors disabled: no answer from 0x08 0x09 0x0a 0x0b"]
+    log = sim.mcu.periph["USART2"].tx_log
+    frame = Fraction(10 * 16 * 83 * (15 + 5), 15)
+    assert frame == Fraction(53120, 3)
+    first_line = len(text.splitlines()[0]) + 2
+    t0 = log[0][0] - 17707                     # the first frame ends ceil(frame) after it starts
+    for n, (tick, _) in enumerate(log[:first_line], start=1):
+        assert tick == t0 + -(-n * frame // 1)   # exact, never drifting (ceil of n frames)
+
+
+def test_console_reaches_a_pty_that_pyserial_reads():
+    serial = pytest.importorskip("serial")
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART2", "pty")
+    try:
+        port = serial.Serial(ep.path, 115200, timeout=1)
+        sim.run(seconds="0.3s")
+        line = port.readline()
+        assert line == b"rover_control: layout skid_steer, 4 motor modules on I2C0\r\n"
+        port.close()
+    finally:
+        sim.close()
+
+
+def test_connect_serial_to_a_missing_uart_names_the_uarts():
+    sim = mcusim.load("ciaa-edu")
+    with pytest.raises(ConfigError, match="USART2, USART3"):
+        sim.connect_serial("UART1")
+    sim.discard()

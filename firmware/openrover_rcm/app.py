@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 
 from firmware.nuttx.lpc43_i2c import lpc43_i2c_init
+from firmware.nuttx.lpc43_serial import Lpc43SerialDev
 from firmware.openrover_mcm import protocol as P
 from firmware.openrover_rcm.board import CiaaBoard
 from firmware.openrover_rcm.kinematics import make_layout, saturate
@@ -59,6 +60,7 @@ DEFAULTS = {
     "max_accel": 0.5,                   # m/s² ramp of the body velocity set point
     "max_yaw_accel": 1.0,               # rad/s² ramp of the yaw-rate set point
     "i2c_frequency": 100_000,
+    "console_baud": 115200,             # syslog on USART2 (UART_USB, the FT2232H debug port)
     "tick_hz": 1000,
     "control_period_ms": 20,
     "cmd_timeout_ms": 500,
@@ -159,6 +161,13 @@ class RoverControl:
         b.gpio_config_input("ESTOP")
         b.adc_init()
         self.i2c = lpc43_i2c_init(self.mcu, frequency=self.p["i2c_frequency"])
+        self.console = Lpc43SerialDev(self.mcu, 0x400C1000, 26, self.p["console_baud"], int(self.cpu.clock.hz))
+        self.console.up_setup()
+        self.syslog(f"layout {self.layout.kind}, {len(self.modules)} motor modules on I2C0")
+
+    def syslog(self, msg: str) -> None:
+        """syslog() to the console: ``rover_control: <msg>`` and CR LF."""
+        self.console.write(f"rover_control: {msg}\r\n".encode())
 
     # --- motor-control module -------------------------------------------------------------------
     async def identify_modules(self) -> None:
@@ -173,12 +182,14 @@ class RoverControl:
                 self.missing.append(addr)
         if self.missing:
             self.faults.add("modules_missing")
+            self.syslog("motors disabled: no answer from " + " ".join(f"{a:#04x}" for a in self.missing))
             return
         for addr in self.modules:     # PID on, faults cleared, set point 0
             await self._write_reg(addr, "SETPOINT", 0)
             await self._write_reg(addr, "CONTROL", P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS)
         self.board.gpio_write("MOTOR_EN", 1)
         self.motors_enabled = True
+        self.syslog("motors enabled: " + " ".join(f"{a:#04x}" for a in self.found))
 
     async def _write_reg(self, addr: int, name: str, value) -> int:
         reg = P.BY_NAME[name]
@@ -198,13 +209,19 @@ class RoverControl:
     def command_target(self) -> tuple:
         """The body velocity to drive now, after the E-stop, watchdog and battery rules."""
         now = self.rtos.tick_count
-        self.estop_pressed = self.board.gpio_read("ESTOP") == 0
+        pressed = self.board.gpio_read("ESTOP") == 0
+        if pressed != self.estop_pressed:
+            self.syslog("E-STOP pressed" if pressed else "E-STOP released")
+        self.estop_pressed = pressed
         if self.estop_pressed:
             self.estop_latched, self._estop_cmd_id = True, self.cmd_id
         elif self.estop_latched and self.cmd_id != self._estop_cmd_id:
             self.estop_latched = False            # a new command after the release
         fresh = self.cmd_tick is not None and now - self.cmd_tick <= self._ms(self.p["cmd_timeout_ms"])
-        self.watchdog_tripped = self.cmd_tick is not None and not fresh
+        tripped = self.cmd_tick is not None and not fresh
+        if tripped and not self.watchdog_tripped:
+            self.syslog(f"watchdog: no command for {self.p['cmd_timeout_ms']} ms, stopping")
+        self.watchdog_tripped = tripped
         if self.estop_latched or not fresh or self.battery_state == CRITICAL or not self.motors_enabled:
             return (0.0, 0.0, 0.0)
         return self.cmd
@@ -275,6 +292,7 @@ class RoverControl:
         if s != self.battery_state:
             self.battery_state = s
             self.battery_log.append((self.mcu.kernel.now, s))
+            self.syslog(f"battery {s.upper()} {v:.2f} V")
         return s
 
     async def battery_monitor(self):
