@@ -75,6 +75,13 @@ def _print_summary(s: dict) -> None:
             sp = m.get("setpoint_rad")
             print(f"{name:<10}{m['angle_rad']:>14.4f}{(f'{sp:.4f}' if sp is not None else '-'):>16}"
                   f"{m['speed_rpm']:>14.2f}{m['peak_current_a']:>18.3f}")
+    for key, label in (("pose", "true pose"), ("odometry", "odometry")):
+        if key in s:
+            p = s[key]
+            print(f"{label:<10} x = {p['x']:.4f} m, y = {p['y']:.4f} m, yaw = {p['yaw']:.4f} rad")
+    if "battery_v" in s:
+        print(f"battery    {s['battery_v']:.3f} V (lowest {s.get('battery_min_v', s['battery_v']):.3f} V, "
+              f"state of charge {100 * s.get('battery_soc', 1):.2f} %)")
     fw = s.get("firmware")
     if fw:
         print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))

@@ -120,6 +120,21 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
 
     buses: dict = {}
     members = {}
+    try:
+        return _build_members(profile, where, specs, main, member_profiles, member_sets, present,
+                              part_params, main_fw, topics, kernel, external, link_nets, buses,
+                              members, with_firmware)
+    except Exception:
+        for ns in members.values():      # firmware tasks that will never run: close them quietly
+            rtos = ns["mcu"].rtos
+            for task in (rtos.tasks if rtos is not None else ()):
+                task.coro.close()
+        raise
+
+
+def _build_members(profile, where, specs, main, member_profiles, member_sets, present, part_params,
+                   main_fw, topics, kernel, external, link_nets, buses, members, with_firmware):
+    system = profile["system"]
     for m in specs:
         name = m["name"]
         prof, pwhere = member_profiles[name]

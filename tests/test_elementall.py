@@ -129,3 +129,14 @@ def test_odometry_of_a_turn_in_place_matches_the_icr_model_and_shows_the_uncalib
     left, right = (dphi[0] + dphi[2]) / 2, (dphi[1] + dphi[3]) / 2
     yaw_chi1 = R * (right - left) / 0.55
     assert yaw_chi1 == pytest.approx(1.5 * odo["yaw"], rel=1e-9)
+
+
+def test_a_two_wheel_differential_rover_declared_the_same_way_drives_an_arc():
+    sim = mcusim.load("rover-diff", overrides={"cmd_vel.linear": 0.2, "cmd_vel.angular": 0.4})
+    sim.run(seconds="1s")
+    s = sim.summary()
+    assert s["firmware"]["layout"] == "differential" and s["firmware"]["modules_found"] == ["0x08", "0x09"]
+    assert s["pose"]["yaw"] > 0.05 and s["pose"]["x"] > 0.05
+    # chi = 1 on both sides: the odometry lags the true pose only by the sampling bound
+    assert abs(s["odometry"]["yaw"] - s["pose"]["yaw"]) <= 0.4 * (CTRL + 0.0012) + 1e-3
+    assert abs(s["odometry"]["x"] - s["pose"]["x"]) <= _lag_bound(0.2)
