@@ -38,7 +38,7 @@ parameter of the main board's firmware; any other key is an input of the main fi
 
 from __future__ import annotations
 
-from .board import build, build_parts, board_clocks, read_profile, split_overrides
+from .board import _firmware_inputs, build, build_parts, board_clocks, read_profile, split_overrides
 from .errors import ConfigError
 from .kernel import Kernel
 from .signals import Net
@@ -57,7 +57,7 @@ def _truth(value, key):
     raise ConfigError(f"--set {key}={value!r}: expected true or false")
 
 
-def split_system_overrides(profile: dict, overrides: dict, where: str):
+def split_system_overrides(profile: dict, overrides: dict, where: str, inputs=frozenset()):
     members = {m["name"]: {} for m in profile.get("member", [])}
     present = {name: True for name in members}
     parts = {p["name"]: {} for p in profile.get("part", [])}
@@ -73,8 +73,11 @@ def split_system_overrides(profile: dict, overrides: dict, where: str):
             parts[head][rest] = value
         elif dot and head == "firmware":
             main_fw[rest] = value
-        else:
+        elif key in inputs or not dot:
             topics.append((key, value))
+        else:
+            raise ConfigError(f"--set {key}: no board or part {head!r}; boards: {', '.join(members)}; "
+                              f"parts: {', '.join(parts)}; controller inputs: {', '.join(sorted(inputs))}")
     return members, present, parts, main_fw, topics
 
 
@@ -89,10 +92,6 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
     main = system.get("main", names[0])
     if main not in names:
         raise ConfigError(f"{where}: [system] main = {main!r} is not a member ({', '.join(names)})")
-    member_sets, present, part_params, main_fw, topics = split_system_overrides(profile, overrides, where)
-    if not present[main]:
-        raise ConfigError(f"--set {main}.present=false: {main} is the system's main board")
-
     member_profiles = {}
     clocks = []
     for m in specs:
@@ -105,6 +104,10 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
             prof = {k: v for k, v in prof.items() if k not in ("part", "pins", "analog")}
         member_profiles[m["name"]] = (prof, pwhere)
         clocks += board_clocks(prof)
+    member_sets, present, part_params, main_fw, topics = split_system_overrides(
+        profile, overrides, where, _firmware_inputs(member_profiles[main][0]))
+    if not present[main]:
+        raise ConfigError(f"--set {main}.present=false: {main} is the system's main board")
     kernel = Kernel(TimeBase(clocks))
 
     # nets that system parts drive into board parts: created first, handed to both sides

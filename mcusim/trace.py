@@ -22,27 +22,19 @@ class VcdTrace:
         board = sim.board_name
         now = self._ps(sim.kernel.now)
         self._closed = False
-        # pins wired to the plant, named as on the chip
-        for pin_name in sim.profile.get("pins", {}):
-            net = sim.mcu.pin(pin_name)
-            var = self.w.register_var(board, pin_name, "wire", size=1, init=net.level)
-            net.listen(lambda n, var=var: self.w.change(var, self._ps(self.sim.kernel.now), n.level))
-        # interrupt lines, named after the peripheral's vector
-        names = {}
-        for spec in sim.profile.get("peripheral", []):
-            irqs = spec.get("irqs", {})
-            shared = len(set(irqs.values())) == 1
-            for kind, n in irqs.items():
-                suffix = {"update": "UP"}.get(kind, kind.upper())  # CMSIS: TIM1_UP_TIM10_IRQn
-                names.setdefault(n, spec["name"] if shared else f"{spec['name']}_{suffix}")
-        irq_vars = {n: self.w.register_var(f"{board}.irq", name, "wire", size=1, init=0)
-                    for n, name in sorted(names.items())}
-
-        def on_line(n, level):
-            var = irq_vars.get(n)
-            if var is not None:
-                self.w.change(var, self._ps(self.sim.kernel.now), int(level))
-        sim.mcu.nvic.line_listeners.append(on_line)
+        # one scope per board (a system's boards under <system>.<member>)
+        system = len(sim.members) > 1 or board not in sim.members
+        for mname, member in sim.members.items():
+            self._member_vars(f"{board}.{mname}" if system else board, member)
+        if system:   # board pins wired to system parts ("rcm.GPIO3_3"), and the system's own nets
+            for dotted in sim.profile.get("pins", {}):
+                mname, _, pin_name = dotted.partition(".")
+                self._wire(f"{board}.{mname}", pin_name, sim.members[mname]["mcu"].pin(pin_name))
+            for name, part in sorted(sim.parts.items()):
+                for attr in ("enable_out",):
+                    net = getattr(part, attr, None)
+                    if net is not None and hasattr(net, "listen"):
+                        self._wire(f"{board}.plant", f"{name}.{attr}", net)
         # plant variables, sampled on a uniform grid; protection flags as wires
         self._reals = []
         for name, motor in sorted(sim.motors.items()):
@@ -59,6 +51,33 @@ class VcdTrace:
         if self._reals and self.period > 0:
             sim.kernel.at(sim.kernel.now, self._sample, prio=PRIO_OBSERVE)
         self._t0 = now
+
+    def _wire(self, scope: str, name: str, net) -> None:
+        var = self.w.register_var(scope, name, "wire", size=1, init=net.level)
+        net.listen(lambda n, var=var: self.w.change(var, self._ps(self.sim.kernel.now), n.level))
+
+    def _member_vars(self, scope: str, member: dict) -> None:
+        mcu, profile = member["mcu"], member["profile"]
+        # pins wired to the plant, named as on the chip
+        for pin_name in profile.get("pins", {}):
+            self._wire(scope, pin_name, mcu.pin(pin_name))
+        # interrupt lines, named after the peripheral's vector
+        names = {}
+        for spec in profile.get("peripheral", []):
+            irqs = spec.get("irqs", {"irq": spec["irq"]} if "irq" in spec else {})
+            shared = len(set(irqs.values())) == 1
+            for kind, n in irqs.items():
+                suffix = {"update": "UP"}.get(kind, kind.upper())  # CMSIS: TIM1_UP_TIM10_IRQn
+                names.setdefault(n, spec["name"] if shared else f"{spec['name']}_{suffix}")
+        irq_vars = {n: self.w.register_var(f"{scope}.irq", name, "wire", size=1, init=0)
+                    for n, name in sorted(names.items())}
+
+        def on_line(n, level):
+            var = irq_vars.get(n)
+            if var is not None:
+                self.w.change(var, self._ps(self.sim.kernel.now), int(level))
+        if irq_vars and hasattr(mcu.nvic, "line_listeners"):
+            mcu.nvic.line_listeners.append(on_line)
 
     def _ps(self, ticks: int) -> int:
         return (ticks * 2 * 10**12 + self.base_hz) // (2 * self.base_hz)

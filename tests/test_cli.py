@@ -90,3 +90,28 @@ def test_unknown_module_input_names_the_inputs(capsys):
     assert main(["run", "pro-mini", "--set", "speed=10", "--duration", "1ms"]) == 2
     err = capsys.readouterr().err
     assert "no input 'speed'" in err and "velocity" in err
+
+
+def test_run_elementall_summary_reports_odometry_pose_battery_and_a_removed_module(tmp_path, capsys):
+    js = tmp_path / "s.json"
+    rc = main(["run", "elementall", "--set", "cmd_vel.linear=0.5", "--set", "cmd_vel.angular=0.2",
+               "--set", "mcm3.present=false", "--set", "battery.count=3", "--duration", "0.3s",
+               "--summary", str(js)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "odometry" in out and "true pose" in out and "battery" in out
+    s = json.loads(js.read_text())
+    assert set(s["odometry"]) == set(s["pose"]) == {"x", "y", "yaw"}
+    assert s["battery_v"] == 11.65 + 1.10 * 1.0          # no load: the open-circuit voltage
+    assert s["firmware"]["modules_missing"] == ["0x0a"] and not s["firmware"]["motors_enabled"]
+    assert set(s["motors"]) == {"mcm1.motor", "mcm2.motor", "mcm3.motor", "mcm4.motor"}
+
+
+def test_system_set_mistakes_are_one_line_and_exit_2(capsys):
+    for args, msg in ((["--set", "battery.count=9"], "from 1 to 8"),
+                      (["--set", "mcm9.present=false"], "boards: rcm, mcm1"),
+                      (["--set", "rcm.present=false"], "main board"),
+                      (["--set", "mcm1.present=maybe"], "expected true or false")):
+        assert main(["run", "elementall", "--duration", "1ms", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and msg in err, err

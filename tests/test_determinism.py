@@ -17,3 +17,18 @@ def test_same_inputs_give_byte_identical_vcd(tmp_path):
     assert ev_a == ev_b
     assert a == b
     assert len(a) > 10_000
+
+
+def _rover_trace(path):
+    sim = mcusim.load("elementall", overrides={"cmd_vel.linear": 0.1, "cmd_vel.angular": 0.1})
+    sim.trace_vcd(path, sample="1ms")
+    sim.run(seconds=0.35)
+    sim.close()
+    return path.read_bytes(), sim.kernel.events, sim.summary()["pose"]
+
+
+def test_five_mcus_on_one_queue_give_byte_identical_vcd(tmp_path):
+    a, ev_a, pose_a = _rover_trace(tmp_path / "a.vcd")
+    b, ev_b, pose_b = _rover_trace(tmp_path / "b.vcd")
+    assert ev_a == ev_b and pose_a == pose_b and a == b
+    assert len(a) > 10_000
