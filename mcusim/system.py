@@ -38,7 +38,7 @@ parameter of the main board's firmware; any other key is an input of the main fi
 
 from __future__ import annotations
 
-from .board import _firmware_inputs, build, build_parts, board_clocks, read_profile, split_overrides
+from .board import _firmware_inputs, board_clocks, build, build_parts, read_profile, split_overrides
 from .errors import ConfigError
 from .kernel import Kernel
 from .signals import Net

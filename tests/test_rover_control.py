@@ -1,6 +1,8 @@
 """rover_control on the EDU-CIAA alone (bench set-up: battery, divider, E-stop, no modules):
 boot without modules, the battery monitor's thresholds, hysteresis and buzzer patterns under sag."""
 
+import itertools
+
 import pytest
 
 import mcusim
@@ -74,7 +76,7 @@ def test_battery_alarms_at_the_thresholds_under_sag_with_hysteresis_and_distinct
     buzzer.clear()
     sim.run(seconds="1s")
     on = [t for t, lv in buzzer if lv]
-    assert [round(b - a, 6) for a, b in zip(on, on[1:])] == [0.4] * (len(on) - 1) and len(on) >= 2
+    assert [round(b - a, 6) for a, b in itertools.pairwise(on)] == [0.4] * (len(on) - 1) and len(on) >= 2
     # load off: back above critical + hysteresis (11.7) but below low + hysteresis (12.1): LOW, not normal
     load.set(0.0)
     sim.run(seconds="2s")
@@ -87,7 +89,7 @@ def test_missing_modules_beep_three_times_every_2s_and_a_full_battery_stays_norm
     sim.run(seconds="2.5s")
     assert sim.firmware.battery_state == "normal"
     on = [t for t, lv in buzzer if lv]
-    steps = [round(b - a, 6) for a, b in zip(on, on[1:])]
+    steps = [round(b - a, 6) for a, b in itertools.pairwise(on)]
     assert steps[:3] == [0.2, 0.2, 1.6]          # (100 on, 100 off) x2, 100 on, 1500 off
     assert sim.part("battery").min_voltage == pytest.approx(12.75)
 
