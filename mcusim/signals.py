@@ -7,6 +7,9 @@ Listeners are called synchronously, at the current kernel time, when the resolve
 
 from __future__ import annotations
 
+import math
+from fractions import Fraction
+
 from .errors import McusimError
 
 
@@ -70,6 +73,17 @@ class Net:
 
     def __repr__(self):
         return f"Net({self.name}={self.level})"
+
+
+def exact_voltage(v) -> Fraction:
+    """A voltage as an exact Fraction (a float through its shortest decimal form), so that an ADC's
+    ``floor(V * 1024 / Vref)`` decides code boundaries exactly (2.5 V at 5 V is 512)."""
+    if isinstance(v, (int, Fraction)):
+        return Fraction(v)
+    v = float(v)
+    if not math.isfinite(v):
+        raise McusimError(f"ADC input voltage {v} is not a finite number")
+    return Fraction(repr(v))
 
 
 class AnalogNet:

@@ -45,12 +45,12 @@ the analog comparator multiplexer (ACME), the bandgap settling time, INL/DNL/off
 
 from __future__ import annotations
 
-import math
 from fractions import Fraction
 
-from mcusim.errors import McusimError, UnsupportedConfiguration
+from mcusim.errors import UnsupportedConfiguration
 from mcusim.firmware import Signal
 from mcusim.registers import Field, Peripheral, Register
+from mcusim.signals import exact_voltage as _exact
 
 ADEN, ADSC, ADATE, ADIF, ADIE = 0x80, 0x40, 0x20, 0x10, 0x08
 ADLAR = 0x20
@@ -58,13 +58,6 @@ PRESCALE = (2, 2, 4, 8, 16, 32, 64, 128)
 BANDGAP = Fraction(11, 10)
 
 
-def _exact(v) -> Fraction:
-    if isinstance(v, (int, Fraction)):
-        return Fraction(v)
-    v = float(v)
-    if not math.isfinite(v):
-        raise McusimError(f"ADC input voltage {v} is not a finite number")
-    return Fraction(repr(v))
 
 
 class Adc(Peripheral):

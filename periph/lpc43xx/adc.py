@@ -92,6 +92,7 @@ from mcusim.errors import ConfigError, McusimError, UnsupportedConfiguration
 from mcusim.firmware import Signal
 from mcusim.kernel import PRIO_HW
 from mcusim.registers import Field, Peripheral, Register
+from mcusim.signals import exact_voltage as _exact
 
 DONE = 1 << 31
 OVERRUN = 1 << 30
@@ -106,14 +107,6 @@ class AdcClockWarning(UserWarning):
     """The ADC clock PCLK_ADC / (CLKDIV + 1) is above the 4.5 MHz maximum of the data sheet."""
 
 
-def _exact(v) -> Fraction:
-    """A voltage as an exact Fraction (floats through their shortest decimal form)."""
-    if isinstance(v, (int, Fraction)):
-        return Fraction(v)
-    v = float(v)
-    if not math.isfinite(v):
-        raise McusimError(f"ADC input voltage {v} is not a finite number")
-    return Fraction(repr(v))
 
 
 def _mhz(hz: Fraction) -> str:
