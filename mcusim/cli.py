@@ -9,12 +9,26 @@ import sys
 import time
 
 from .errors import ConfigError, McusimError, TimeError
+from .progress import run_with_progress
 from .time import parse_duration
 
 EXAMPLES_RUN = """examples:
   mcusim run nucleo-f746
   mcusim run nucleo-f746 --duration 500ms --set /motor1/set_pos=1.57 --vcd out.vcd
   mcusim run nucleo-f746 --set motor1.load_inertia=2e-5 --set firmware.variant=thesis --summary s.json
+  mcusim run pro-mini --set velocity=10 --duration 3s
+  mcusim run elementall --set cmd_vel.linear=0.5 --set cmd_vel.angular=0.2 --duration 10s --summary out.json
+  mcusim run elementall --set mcm3.present=false --set battery.count=2
+
+exit status: 0 the run completed; 1 the firmware reported a fault (or a simulation error);
+2 a usage error (bad board, key, value or unit)
+"""
+EXAMPLES_BOARDS = """examples:
+  mcusim boards
+"""
+EXAMPLES_BENCH = """examples:
+  mcusim bench nucleo-f746 --repeat 3
+  mcusim bench elementall --duration 1s --json bench.json
 """
 
 
@@ -42,7 +56,8 @@ def _duration(text: str):
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
-    sub.add_parser("boards", help="list the board profiles")
+    sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
+                   formatter_class=argparse.RawDescriptionHelpFormatter)
     r = sub.add_parser("run", help="run a board's firmware against its plant", epilog=EXAMPLES_RUN,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml")
@@ -54,8 +69,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="sampling period of the real-valued plant variables in the VCD (default 50us)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
     r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
-    b = sub.add_parser("bench", help="real-time factor of a fixed scenario",
-                       epilog="example:\n  mcusim bench nucleo-f746 --repeat 3",
+    r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    b = sub.add_parser("bench", help="real-time factor of a fixed scenario", epilog=EXAMPLES_BENCH,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     b.add_argument("board")
     b.add_argument("--duration", type=_duration, default=parse_duration("1s"))
@@ -96,7 +111,7 @@ def cmd_run(args) -> int:
     if args.vcd:
         sim.trace_vcd(args.vcd, sample=args.vcd_sample)
     try:
-        sim.run(seconds=args.duration)
+        run_with_progress(sim, args.duration, quiet=args.quiet)
     finally:
         sim.close()
     s = sim.summary()
@@ -106,6 +121,10 @@ def cmd_run(args) -> int:
     if args.summary:
         with open(args.summary, "w") as f:
             json.dump(s, f, indent=2)
+    faults = (s.get("firmware") or {}).get("faults")
+    if faults:
+        print(f"mcusim: the firmware reported: {', '.join(faults)}", file=sys.stderr)
+        return 1
     return 0
 
 

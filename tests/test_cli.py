@@ -97,9 +97,11 @@ def test_run_elementall_summary_reports_odometry_pose_battery_and_a_removed_modu
     rc = main(["run", "elementall", "--set", "cmd_vel.linear=0.5", "--set", "cmd_vel.angular=0.2",
                "--set", "mcm3.present=false", "--set", "battery.count=3", "--duration", "0.3s",
                "--summary", str(js)])
-    assert rc == 0
-    out = capsys.readouterr().out
+    assert rc == 1                                         # the controller reports the missing module
+    captured = capsys.readouterr()
+    out = captured.out
     assert "odometry" in out and "true pose" in out and "battery" in out
+    assert captured.err == "mcusim: the firmware reported: modules_missing\n"
     s = json.loads(js.read_text())
     assert set(s["odometry"]) == set(s["pose"]) == {"x", "y", "yaw"}
     assert s["battery_v"] == 11.65 + 1.10 * 1.0          # no load: the open-circuit voltage
@@ -115,3 +117,45 @@ def test_system_set_mistakes_are_one_line_and_exit_2(capsys):
         assert main(["run", "elementall", "--duration", "1ms", *args]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and msg in err, err
+
+
+class _Tty:
+    def __init__(self):
+        self.text = ""
+
+    def isatty(self):
+        return True
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+def test_progress_bar_draws_on_a_terminal_only_and_slicing_does_not_change_the_run():
+    import mcusim
+    from mcusim.progress import run_with_progress
+
+    def run(stream, quiet=False):
+        sim = mcusim.load("nucleo-f746", overrides={"/motor1/set_pos": 0.3})
+        run_with_progress(sim, "20ms", quiet=quiet, stream=stream, after=0.0)
+        return sim.kernel.events, sim.part("motor1").output_angle, sim.kernel.now
+
+    tty = _Tty()
+    sliced = run(tty)
+    assert "100.0%" in tty.text and tty.text.endswith("\n") and "real time" in tty.text
+    quiet = _Tty()
+    assert run(quiet, quiet=True) == sliced and quiet.text == ""
+    import io
+    pipe = io.StringIO()
+    assert run(pipe) == sliced and pipe.getvalue() == ""
+
+
+def test_every_subcommand_help_has_examples(capsys):
+    import pytest
+    for cmd in ("boards", "run", "bench"):
+        with pytest.raises(SystemExit) as exc:
+            main([cmd, "--help"])
+        assert exc.value.code == 0
+        assert "examples:" in capsys.readouterr().out
