@@ -173,6 +173,10 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
                 v = spec[key]
                 args[key] = [ref(x, name) for x in v] if isinstance(v, list) else ref(v, name)
         required, optional = PART_TERMINALS[kind]
+        unknown = set(wiring.get(name, {})) - set(required + optional)
+        if unknown:
+            raise ConfigError(f"{where}: part {name} ({kind}) has no terminal {', '.join(sorted(unknown))}; "
+                              f"terminals: {', '.join(required + optional) or 'none'}")
         for term in required + optional:
             net = wiring.get(name, {}).get(term)
             if net is None:
@@ -272,9 +276,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     wiring: dict[str, dict[str, object]] = {}
     for pin, target in profile.get("pins", {}).items():
         part, _, terminal = target.partition(".")
-        wiring.setdefault(part, {})[terminal] = mcu.pin(pin)
+        wiring.setdefault(part, {})[terminal.upper()] = mcu.pin(pin)
     for part, terms in (external or {}).items():
-        wiring.setdefault(part, {}).update(terms)
+        wiring.setdefault(part, {}).update({t.upper(): net for t, net in terms.items()})
     parts = build_parts(kernel, profile.get("part", []), part_overrides, wiring, where)
     # [analog]: an MCU analog input follows a part's analog output (IBT-2 R_IS -> A0)
     for net_name, target in profile.get("analog", {}).items():

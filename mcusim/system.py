@@ -147,6 +147,13 @@ def _build_members(profile, where, specs, main, member_profiles, member_sets, pr
         if name == main:
             p_fw.update(main_fw)
         fw_on = with_firmware and present[name]
+        if not fw_on:      # firmware keys for a board whose firmware does not run are mistakes
+            topic_keys = {k for k, _ in p_topics}
+            given = [f"{name}.{k}" for k in member_sets[name] if k.startswith("firmware.") or k in topic_keys]
+            given += [f"firmware.{k}" for k in main_fw] if name == main else []
+            if given:
+                why = "is not present" if not present[name] else "runs without firmware (--no-firmware)"
+                raise ConfigError(f"--set {', '.join(given)}: {name} {why}")
         if not fw_on:
             p_fw, p_topics = {}, []
         ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external[name])
@@ -165,7 +172,7 @@ def _build_members(profile, where, specs, main, member_profiles, member_sets, pr
         if member not in members:
             raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
         part, _, term = target.partition(".")
-        wiring.setdefault(part, {})[term] = members[member]["mcu"].pin(pin_name)
+        wiring.setdefault(part, {})[term.upper()] = members[member]["mcu"].pin(pin_name)
     for source, net in link_nets.items():
         part, _, term = source.partition(".")
         wiring.setdefault(part, {})[term.upper()] = net
@@ -177,7 +184,7 @@ def _build_members(profile, where, specs, main, member_profiles, member_sets, pr
         if mcu is None or net_name not in mcu.analog:
             raise ConfigError(f"{where}: [analog] {target!r}: no analog input {net_name!r} on {member!r}")
         part_name, _, term = source.partition(".")
-        src = sys_parts.get(part_name) or lookup(part_name)
+        src = sys_parts.get(part_name)
         if term:
             src = getattr(src, term.lower(), None)
         if src is None or not hasattr(src, "voltage"):

@@ -17,8 +17,11 @@ Tasks (NuttX tasks on a 1 kHz system tick; priorities as numbers, higher = more 
     reads every module's 16-bit POSITION, unwraps it and integrates the odometry.
 * ``battery_monitor`` (priority 50, every ``battery_period_ms``): one ADC0 conversion of CH1
   (battery through the divider ``r_top``/``r_bottom``), a moving average over
-  ``battery_samples``, and the state machine NORMAL → LOW (< ``low_v``) → CRITICAL
-  (< ``critical_v``), each way back only above the threshold plus ``hysteresis_v``.
+  ``battery_samples``, and the state machine NORMAL → LOW (< ``low_v``; back to NORMAL only
+  above ``low_v + hysteresis_v``) → CRITICAL (< ``critical_v``). CRITICAL stops the rover and is
+  latched until reset: the reading is taken under load, so the voltage recovers by the sag
+  (0.2–0.8 V at 10–40 A on two batteries) as soon as the motors stop, which would otherwise
+  start and stop the rover in a loop near empty.
 * ``status`` (priority 40, every 50 ms): the buzzer pattern of the battery state (LOW: one 100 ms
   beep every 5 s; CRITICAL: 200 ms on / 200 ms off; a missing module: three 100 ms beeps every
   2 s), LED1 heartbeat, LED2 fault, LED3 motors enabled.
@@ -125,6 +128,7 @@ class RoverControl:
         self.estop_latched = False
         self._estop_cmd_id = None
         self.watchdog_tripped = False
+        self._modules_held = False
         self.cmd = (0.0, 0.0, 0.0)
         self.cmd_id = 0
         self.cmd_tick = None
@@ -206,6 +210,17 @@ class RoverControl:
             return None
         return P.decode(name, data)
 
+    async def hold_modules(self, hold: bool) -> None:
+        """While the E-stop latch is set the modules' PIDs are off (CONTROL = 0: output 0, PID_v1
+        in MANUAL), so that their integrators do not wind up against wheels that coast with the
+        bridges cut; when the latch clears they are re-enabled with their faults cleared."""
+        if hold == self._modules_held:
+            return
+        control = 0 if hold else P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS
+        for addr in self.modules:
+            await self._write_reg(addr, "CONTROL", control)
+        self._modules_held = hold
+
     def command_target(self) -> tuple:
         """The body velocity to drive now, after the E-stop, watchdog and battery rules."""
         now = self.rtos.tick_count
@@ -256,6 +271,7 @@ class RoverControl:
             await self.cpu.cycles(self.p["cycles_control"])
             if not self.motors_enabled:
                 continue
+            await self.hold_modules(self.estop_latched)
             setpoints = self.wheel_counts(self.body_target)
             for i, addr in enumerate(self.modules):
                 if await self._write_reg(addr, "SETPOINT", setpoints[i]) == 0:
@@ -284,9 +300,7 @@ class RoverControl:
         if s == NORMAL and v < p["low_v"]:
             s = LOW
         if s in (NORMAL, LOW) and v < p["critical_v"]:
-            s = CRITICAL
-        elif s == CRITICAL and v > p["critical_v"] + p["hysteresis_v"]:
-            s = LOW
+            s = CRITICAL       # latched: the voltage recovers once the motors stop, the charge does not
         if s == LOW and v > p["low_v"] + p["hysteresis_v"]:
             s = NORMAL
         if s != self.battery_state:
@@ -367,11 +381,12 @@ class RoverControl:
             h["stream"] = value in (True, 1, "true", "1")
         else:
             try:
-                h[key] = float(value)
+                v = float(value)
             except (TypeError, ValueError):
                 raise ConfigError(f"{name}={value!r}: expected a number") from None
-            if key == "lateral" and h[key] and not self.layout.holonomic:
+            if key == "lateral" and v and not self.layout.holonomic:
                 raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
+            h[key] = v
             h["id"] += 1
         if self._stream_ev is not None:
             self._stream_ev.cancel()
