@@ -147,3 +147,13 @@ def test_connect_serial_to_a_missing_uart_names_the_uarts():
     with pytest.raises(ConfigError, match="USART2, USART3"):
         sim.connect_serial("UART1")
     sim.discard()
+
+
+def test_a_misspelled_part_terminal_is_refused_not_left_unwired(tmp_path):
+    """A terminal nobody declares (estop.SENS) would leave the E-stop sense unwired: refuse it."""
+    import importlib.resources
+    text = (importlib.resources.files("boards") / "ciaa-edu.toml").read_text()
+    bad = tmp_path / "typo.toml"
+    bad.write_text(text.replace('"estop.SENSE"', '"estop.SENS"'))
+    with pytest.raises(ConfigError, match=r"part estop \(estop\) has no terminal SENS; terminals: ENABLE_IN"):
+        mcusim.load(str(bad))
