@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import statistics
 import sys
@@ -19,9 +20,16 @@ EXAMPLES_RUN = """examples:
   mcusim run pro-mini --set velocity=10 --duration 3s
   mcusim run elementall --set cmd_vel.linear=0.5 --set cmd_vel.angular=0.2 --duration 10s --summary out.json
   mcusim run elementall --set mcm3.present=false --set battery.count=2
+  mcusim run nucleo-f746 --scenario scenarios/step_response.toml --plot step.png --csv step.csv
+  mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
 
 exit status: 0 the run completed; 1 the firmware reported a fault (or a simulation error);
 2 a usage error (bad board, key, value or unit)
+"""
+EXAMPLES_TRACE = """examples:
+  mcusim trace nucleo-f746 --duration 1ms --filter TIM1
+  mcusim trace pro-mini --duration 20ms --set velocity=10 --filter TWI,ADC
+  mcusim trace elementall --duration 200ms --filter rcm.I2C0
 """
 EXAMPLES_BOARDS = """examples:
   mcusim boards
@@ -53,6 +61,16 @@ def _duration(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _run_arguments(r) -> None:
+    r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml")
+    r.add_argument("--duration", type=_duration, default=None,
+                   help="simulated time (default: the scenario's, else 2s)")
+    r.add_argument("--set", dest="sets", type=_kv, action="append", default=[], metavar="KEY=VALUE",
+                   help="topic (/motor1/set_pos=1.57) or parameter (motor1.J=6e-6, firmware.variant=thesis)")
+    r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
+    r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
@@ -60,16 +78,29 @@ def _parser() -> argparse.ArgumentParser:
                    formatter_class=argparse.RawDescriptionHelpFormatter)
     r = sub.add_parser("run", help="run a board's firmware against its plant", epilog=EXAMPLES_RUN,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml")
-    r.add_argument("--duration", type=_duration, default=parse_duration("2s"), help="simulated time (default 2s)")
-    r.add_argument("--set", dest="sets", type=_kv, action="append", default=[], metavar="KEY=VALUE",
-                   help="topic (/motor1/set_pos=1.57) or parameter (motor1.J=6e-6, firmware.variant=thesis)")
-    r.add_argument("--vcd", metavar="FILE", help="write pins, IRQ lines and plant variables as VCD")
+    _run_arguments(r)
+    r.add_argument("--scenario", metavar="FILE", help="script the run: timed commands, disturbances, "
+                   "faults, expectations (a .toml path or a name in scenarios/)")
+    r.add_argument("--vcd", metavar="FILE", help="write pins, IRQ lines and plant variables as VCD "
+                   "(and a GTKWave layout FILE.gtkw)")
     r.add_argument("--vcd-sample", type=_duration, default=parse_duration("50us"),
                    help="sampling period of the real-valued plant variables in the VCD (default 50us)")
+    r.add_argument("--csv", metavar="FILE", help="write plant and firmware variables on a uniform grid")
+    r.add_argument("--sample", type=_duration, default=parse_duration("1ms"),
+                   help="grid of --csv and --plot (default 1ms)")
+    r.add_argument("--plot", metavar="FILE.png", help="draw set point and position or velocity, duty and "
+                   "current (and the rover's path) with matplotlib")
+    r.add_argument("--register-log", metavar="FILE", help="every firmware register access as JSON lines "
+                   "('-' for stdout)")
+    r.add_argument("--register-log-filter", metavar="NAMES", help="only these peripherals or registers: "
+                   "TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
-    r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
-    r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    t = sub.add_parser("trace", help="print the firmware's register accesses (run --register-log -)",
+                       epilog=EXAMPLES_TRACE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _run_arguments(t)
+    t.add_argument("--filter", dest="register_log_filter", metavar="NAMES",
+                   help="only these peripherals or registers: TIM3, TIM3.CCR1, GPIO* (comma-separated)")
+    t.set_defaults(scenario=None)
     b = sub.add_parser("bench", help="real-time factor of a fixed scenario", epilog=EXAMPLES_BENCH,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     b.add_argument("board")
@@ -102,30 +133,89 @@ def _print_summary(s: dict) -> None:
         print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))
 
 
-def cmd_run(args) -> int:
+def _build(args, scenario):
+    """The simulation a ``run``/``trace`` asks for (a scenario's board and [set], or the profile's
+    demo command), with the register log attached from reset when one is asked for."""
+    from contextlib import nullcontext
+
     from .board import read_profile
+    from .reglog import RegisterLog, capture_startup, release
     from .sim import load
-    sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
-    sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
-    sim = load(args.board, firmware=not args.no_firmware, overrides=sets)
-    if args.vcd:
-        sim.trace_vcd(args.vcd, sample=args.vcd_sample)
+    log_to = getattr(args, "register_log", None)
+    with (capture_startup() if log_to is not None else nullcontext()) as startup:
+        try:
+            if scenario is not None:
+                sim = scenario.build(args.board, dict(args.sets), not args.no_firmware)
+                try:
+                    scenario.apply(sim)
+                except McusimError:
+                    sim.discard()
+                    raise
+            else:
+                sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
+                sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
+                sim = load(args.board, firmware=not args.no_firmware, overrides=sets)
+        except BaseException:
+            if startup is not None:
+                release(startup)
+            raise
+    if log_to is not None:
+        out = sys.stdout if log_to == "-" else log_to
+        try:
+            sim._traces.append(RegisterLog(sim, out, filter=args.register_log_filter, startup=startup))
+        except BaseException:
+            sim.discard()
+            raise
+    return sim
+
+
+def cmd_run(args) -> int:
+    from .scenario import load_scenario
+    scenario = load_scenario(args.scenario) if args.scenario else None
+    duration = args.duration or (scenario.duration if scenario is not None else parse_duration("2s"))
+    sim = _build(args, scenario)
+    vcd = sim.trace_vcd(args.vcd, sample=args.vcd_sample) if args.vcd else None
+    csv = sim.trace_csv(args.csv, sample=args.sample, keep=bool(args.plot)) if (args.csv or args.plot) else None
     try:
-        run_with_progress(sim, args.duration, quiet=args.quiet)
+        run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
     finally:
         sim.close()
     s = sim.summary()
-    _print_summary(s)
-    if args.vcd:
-        print(f"VCD written to {args.vcd}")
+    if scenario is not None:
+        s.update(scenario.report_entries())
+    report = sys.stderr if args.register_log == "-" else sys.stdout    # keep stdout for the log
+    with contextlib.redirect_stdout(report):
+        _print_summary(s)
+        if scenario is not None:
+            for line in scenario.format_results():
+                print(line)
+        if vcd is not None:
+            print(f"VCD written to {args.vcd} (GTKWave layout: {vcd.write_gtkw()})")
+        if args.csv:
+            print(f"CSV written to {args.csv}")
+        if args.plot:
+            from .plot import plot_run
+            plot_run(csv, args.plot, title=s["board"])
+            print(f"plot written to {args.plot}")
     if args.summary:
         with open(args.summary, "w") as f:
             json.dump(s, f, indent=2)
+    failed = []
+    if scenario is not None and scenario.failed:
+        failed.append("a scenario expectation failed")
     faults = (s.get("firmware") or {}).get("faults")
     if faults:
-        print(f"mcusim: the firmware reported: {', '.join(faults)}", file=sys.stderr)
-        return 1
-    return 0
+        failed.append(f"the firmware reported: {', '.join(faults)}")
+    for why in failed:
+        print(f"mcusim: {why}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def cmd_trace(args) -> int:
+    args.register_log = "-"
+    for name in ("vcd", "csv", "plot", "summary"):
+        setattr(args, name, None)
+    return cmd_run(args)
 
 
 def bench(board: str, duration, repeat: int = 3) -> dict:
@@ -176,11 +266,17 @@ def main(argv=None) -> int:
             return cmd_run(args)
         if args.cmd == "bench":
             return cmd_bench(args)
+        if args.cmd == "trace":
+            return cmd_trace(args)
     except (ConfigError, TimeError) as exc:
         print(f"mcusim: error: {exc}", file=sys.stderr)
         return 2
     except McusimError as exc:
         print(f"mcusim: error: {exc}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:              # `mcusim trace ... | head`: the reader has gone
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
     except KeyboardInterrupt:
         print("mcusim: interrupted", file=sys.stderr)

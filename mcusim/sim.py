@@ -125,8 +125,23 @@ class Simulation:
         self._traces.append(tr)
         return tr
 
+    def trace_csv(self, path=None, sample="1ms", keep: bool = False):
+        """Plant and firmware variables on a uniform grid (:class:`mcusim.csvtrace.CsvTrace`)."""
+        from .csvtrace import CsvTrace
+        tr = CsvTrace(self, path, sample=sample, keep=keep)
+        self._traces.append(tr)
+        return tr
+
+    def trace_registers(self, path_or_file, filter=None):
+        """Log every firmware register access from now on as JSON lines (:mod:`mcusim.reglog`;
+        ``mcusim.reglog.load_logged`` also catches the accesses made while the firmware starts)."""
+        from .reglog import RegisterLog
+        log = RegisterLog(self, path_or_file, filter=filter)
+        self._traces.append(log)
+        return log
+
     def discard(self) -> None:
-        """Drop the firmware's task coroutines (a simulation that will not run)."""
+        """Drop the firmware's task coroutines (a simulation that will not run on)."""
         for member in self.members.values():
             rtos = member["mcu"].rtos
             if rtos is not None:
@@ -140,6 +155,7 @@ class Simulation:
         for fn in self._closers:
             fn()
         self._closers.clear()
+        self.discard()      # the run is over: end the firmware's tasks (some may never have started)
 
     # --- summary ------------------------------------------------------------------------------------
     def summary(self) -> dict:

@@ -4,9 +4,21 @@ VCD time is written in picoseconds: the base tick (1/216 MHz = 4629.6 ps) is not
 of any VCD unit, so each tick is rounded to the nearest picosecond. Ticks are thousands of ps
 apart, so order and distinctness of edges are preserved; the exact tick of an edge is
 ``round(t_ps · base_hz / 1e12)``.
+
+:func:`write_gtkw` (or ``VcdTrace.write_gtkw()``) writes a GTKWave save file next to the VCD that
+opens it with the signals grouped: one group per board scope with its pins, one with the interrupt
+lines, one with the plant (reals drawn as analog steps). ``gtkwave run.gtkw`` opens both.
+
+Other tools: sigrok-cli 0.5.x reads this VCD as it is (``sigrok-cli -I vcd:downsample=1000 -i
+run.vcd -P pwm:data=PE9 -A pwm``). It takes the ps timescale at face value (a 1 THz sample rate:
+``downsample=1000`` makes 1 ns samples and a fast decode), skips the real variables, and names
+channels by the variable alone, without the scope: in a system, pins of the same name on several
+boards (``PB1`` of mcm1..mcm4) are then ambiguous.
 """
 
 from __future__ import annotations
+
+import os
 
 from vcd import VCDWriter
 
@@ -16,7 +28,11 @@ from .kernel import PRIO_OBSERVE
 class VcdTrace:
     def __init__(self, sim, path, sample="50us"):
         self.sim = sim
+        self.path = os.fspath(path)
         self.base_hz = sim.timebase.base_hz
+        # (group, full hierarchical name, VCD type) of every variable, in declaration order; the
+        # group is a board scope, "irq" or "plant" (see write_gtkw)
+        self.signals: list[tuple[str, str, str]] = []
         self._file = open(path, "w")  # noqa: SIM115 (open for the trace's lifetime; close() closes it)
         self.w = VCDWriter(self._file, timescale="1 ps", date="", comment=f"mcusim {sim.board_name}")
         board = sim.board_name
@@ -34,26 +50,30 @@ class VcdTrace:
                 for attr in ("enable_out",):
                     net = getattr(part, attr, None)
                     if net is not None and hasattr(net, "listen"):
-                        self._wire(f"{board}.plant", f"{name}.{attr}", net)
+                        self._wire(f"{board}.plant", f"{name}.{attr}", net, group="plant")
         # plant variables, sampled on a uniform grid; protection flags as wires
         self._reals = []
         for name, motor in sorted(sim.motors.items()):
-            self._reals.append((self.w.register_var(f"{board}.plant", f"{name}.angle_rad", "real",
-                                                    init=motor.output_angle), motor, "output_angle"))
-            self._reals.append((self.w.register_var(f"{board}.plant", f"{name}.current_a", "real",
-                                                    init=motor.current), motor, "current"))
+            self._reals.append((self._var("plant", f"{board}.plant", f"{name}.angle_rad", "real",
+                                          init=motor.output_angle), motor, "output_angle"))
+            self._reals.append((self._var("plant", f"{board}.plant", f"{name}.current_a", "real",
+                                          init=motor.current), motor, "current"))
         for name, part in sorted(sim.parts.items()):
             net = getattr(part, "ocd", None)
             if net is not None and hasattr(net, "listen"):
-                var = self.w.register_var(f"{board}.plant", f"{name}.ocd", "wire", size=1, init=net.level)
-                net.listen(lambda n, var=var: self.w.change(var, self._ps(self.sim.kernel.now), n.level))
+                self._wire(f"{board}.plant", f"{name}.ocd", net, group="plant")
         self.period = sim.timebase.ticks(sample, rounding=True)
         if self._reals and self.period > 0:
             sim.kernel.at(sim.kernel.now, self._sample, prio=PRIO_OBSERVE)
         self._t0 = now
 
-    def _wire(self, scope: str, name: str, net) -> None:
-        var = self.w.register_var(scope, name, "wire", size=1, init=net.level)
+    def _var(self, group: str, scope: str, name: str, var_type: str, **kw):
+        var = self.w.register_var(scope, name, var_type, **kw)
+        self.signals.append((group, f"{scope}.{name}", var_type))
+        return var
+
+    def _wire(self, scope: str, name: str, net, group: str | None = None) -> None:
+        var = self._var(scope if group is None else group, scope, name, "wire", size=1, init=net.level)
         net.listen(lambda n, var=var: self.w.change(var, self._ps(self.sim.kernel.now), n.level))
 
     def _member_vars(self, scope: str, member: dict) -> None:
@@ -69,7 +89,7 @@ class VcdTrace:
             for kind, n in irqs.items():
                 suffix = {"update": "UP"}.get(kind, kind.upper())  # CMSIS: TIM1_UP_TIM10_IRQn
                 names.setdefault(n, spec["name"] if shared else f"{spec['name']}_{suffix}")
-        irq_vars = {n: self.w.register_var(f"{scope}.irq", name, "wire", size=1, init=0)
+        irq_vars = {n: self._var("irq", f"{scope}.irq", name, "wire", size=1, init=0)
                     for n, name in sorted(names.items())}
 
         def on_line(n, level):
@@ -98,3 +118,51 @@ class VcdTrace:
             self._closed = True
             self.w.close(self._ps(now))
             self._file.close()
+
+    def write_gtkw(self, path=None) -> str:
+        """Write the GTKWave save file for this VCD (see :func:`write_gtkw`); returns its path."""
+        return write_gtkw(self, path)
+
+
+GTKW_ANALOG_ROWS = 3   # extra rows of height under each analog trace
+
+
+def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
+    """Write a GTKWave save file (``.gtkw``) for ``vcd_trace``: by default next to the VCD, with
+    the same name and the suffix ``.gtkw``. Returns the path written.
+
+    Groups: one per board scope with its pins (``nucleo-f746``; in a system ``elementall.mcm1``
+    ...), ``interrupts`` with the interrupt lines of every board, ``plant`` with the plant's
+    wires (protection flags, the enable line) and reals (motor angle and current, drawn as
+    analog steps). Signals are named by their full hierarchical name (``nucleo-f746.irq.TIM3``,
+    ``nucleo-f746.plant.motor1.angle_rad``). The dump file is named by its absolute path.
+    """
+    from vcd.gtkw import GTKWFlag, GTKWSave
+
+    vcd_path = os.path.abspath(vcd_trace.path)
+    if path is None:
+        root, _ = os.path.splitext(vcd_path)
+        path = root + ".gtkw"
+    path = os.fspath(path)
+    groups: dict[str, list[tuple[str, str]]] = {}
+    for group, name, var_type in vcd_trace.signals:
+        groups.setdefault(group, []).append((name, var_type))
+    order = [g for g in groups if g not in ("irq", "plant")] + [g for g in ("irq", "plant") if g in groups]
+    with open(path, "w") as f:
+        gtkw = GTKWSave(f)
+        gtkw.comment(f"mcusim {vcd_trace.sim.board_name}: signals grouped by board, interrupts, plant")
+        gtkw.dumpfile(vcd_path)
+        gtkw.savefile(os.path.abspath(path))
+        gtkw.timestart(0)
+        board = vcd_trace.sim.board_name
+        gtkw.treeopen(board)
+        for group in order:
+            with gtkw.group({"irq": "interrupts"}.get(group, group)):
+                for name, var_type in groups[group]:
+                    if var_type == "real":
+                        gtkw.trace(name, datafmt="signed", extraflags=GTKWFlag.analog_step)
+                        for _ in range(GTKW_ANALOG_ROWS):
+                            gtkw.blank(analog_extend=True)
+                    else:
+                        gtkw.trace(name, datafmt="bin")
+    return path

@@ -104,6 +104,7 @@ class LeadAcidBank:
     tick, the value held then), ``net`` (an :class:`AnalogNet` following it), ``soc``, ``ocv``,
     ``v1`` (RC-pair voltage), ``current`` (last step's average bank current, A), ``min_voltage``
     (lowest terminal voltage so far), ``charge_ah`` (net charge drawn, Ah), ``steps``.
+    ``set_soc(soc)`` sets the state of charge now (an injected sag, for scenarios).
     """
 
     def __init__(self, kernel, name: str = "battery", *, count=2, soc=1.0, capacity_ah=9.0,
@@ -214,6 +215,15 @@ class LeadAcidBank:
             for load in self._loads:
                 load.set_supply(v)
         self.min_voltage = min(self.min_voltage, v)
+
+    def set_soc(self, soc: float) -> None:
+        """Injected change (scenario fault ``battery_sag``): the state of charge becomes ``soc``
+        now; the terminal voltage follows at once (same law as a step, with the last current)."""
+        s = _num("soc", soc, f"battery {self.name}")
+        if not 0.0 <= s <= 1.0:
+            raise ConfigError(f"battery {self.name}: soc = {soc!r} must be in [0, 1]")
+        self._soc = s
+        self._hold(max(self.ocv - self.v1 - self.r_series * self.current, 0.0))
 
     # ---- observers ---------------------------------------------------------------------------------
     def voltage(self, t: int | None = None) -> float:

@@ -11,6 +11,10 @@ the trajectory and the scheduling): crossing up fires at the first tick t with �
 crossing down at the first tick with θ(t) < k·2π/C4. The edge is set on the nets at that tick,
 during the motor's plant event (``PRIO_PLANT``). No per-edge error pattern δ_k, jitter or
 hysteresis is modelled (the sheet's [I] options); edges are ideal.
+
+Fault injection (used by scenarios, :mod:`mcusim.scenario`): :meth:`QuadratureEncoder.glitch`
+puts a noise spike on one output; :meth:`QuadratureEncoder.drop_edges` makes the next crossings
+emit no edge (the decoder then lags the shaft by that many counts for good).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import math
 
 from ..errors import ConfigError
+from ..kernel import PRIO_PLANT
 from ..signals import Net
 
 _QUAD = ((0, 0), (1, 0), (1, 1), (0, 1))
@@ -28,7 +33,8 @@ class QuadratureEncoder:
 
     Drives ``a`` and ``b`` (Nets) with driver name ``name``. Attributes: ``position`` (k, absolute
     quarter-steps), ``count`` (quarter-steps since construction, signed), ``edges`` (edges emitted),
-    ``counts_per_rev``, ``step`` (rad per count).
+    ``counts_per_rev``, ``step`` (rad per count), ``dropped`` (edges suppressed by
+    :meth:`drop_edges`).
     """
 
     def __init__(self, kernel, motor, a: Net, b: Net, counts_per_rev: int = 64, name: str = "encoder1"):
@@ -47,6 +53,9 @@ class QuadratureEncoder:
         self.position = k
         self._k0 = self.position
         self.edges = 0
+        self.dropped = 0
+        self._drop = 0                     # crossings still to suppress (drop_edges)
+        self._slip = 0                     # outputs show the state of position - _slip
         self._out()
         motor.add_guard_provider(self)
 
@@ -55,7 +64,7 @@ class QuadratureEncoder:
         return self.position - self._k0
 
     def _out(self):
-        qa, qb = _QUAD[self.position & 3]
+        qa, qb = _QUAD[(self.position - self._slip) & 3]
         self.a.set(self.name, qa)
         self.b.set(self.name, qb)
 
@@ -77,9 +86,35 @@ class QuadratureEncoder:
             while th < k * st:
                 k -= 1
         while self.position != k:       # one quadrature step (one edge) at a time
-            self.position += 1 if k > self.position else -1
+            d = 1 if k > self.position else -1
+            self.position += d
+            if self._drop:              # injected fault: this crossing emits no edge
+                self._drop -= 1
+                self._slip += d
+                self.dropped += 1
+                continue
             self.edges += 1
             self._out()
+
+    # ---- fault injection ---------------------------------------------------------------------------
+    def glitch(self, channel: str = "A", width: int = 1) -> None:
+        """Injected noise spike: output ``channel`` ("A" or "B") shows the wrong level from now for
+        ``width`` base ticks, then the true level again (an edge pair the decoder may or may not
+        see, depending on its filter and on how fast it samples)."""
+        if channel not in ("A", "B") or int(width) != width or width < 1:
+            raise ConfigError(f"encoder {self.name}: glitch channel must be 'A' or 'B' and width "
+                              f"a positive number of ticks, not {channel!r}, {width!r}")
+        net = self.a if channel == "A" else self.b
+        net.set(self.name, 1 - _QUAD[(self.position - self._slip) & 3][channel == "B"])
+        self.kernel.after(int(width), self._out, prio=PRIO_PLANT)
+
+    def drop_edges(self, n: int) -> None:
+        """Injected fault: the next ``n`` threshold crossings emit no edge (a dirty or damaged
+        disc). The outputs stay a valid quadrature sequence, so a decoder ends up ``n`` counts
+        behind (in the direction of those crossings) for good. ``n = 0`` cancels what is left."""
+        if int(n) != n or n < 0:
+            raise ConfigError(f"encoder {self.name}: drop_edges({n!r}) needs a whole number >= 0")
+        self._drop = int(n)
 
     def __repr__(self):
         return f"QuadratureEncoder({self.name}: position {self.position}, A={self.a.level} B={self.b.level})"

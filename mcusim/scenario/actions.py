@@ -1,0 +1,205 @@
+"""The timed actions of ``[[at]]`` tables: one class per action kind, registered in
+:data:`ACTION_KINDS`. Each checks its value in the file (``parse``, when the scenario is loaded)
+and, against the built simulation, returns what it does at its tick (``prepare``, when the
+scenario is applied: a function the kernel calls at ``PRIO_INPUT``). Faults (``fault = { kind =
+... }``) are one action whose kinds are in :mod:`.faults`.
+
+The functions get the :class:`~.model.Scenario`: its checked-value and name methods
+(:class:`~.check.Checker`), ``_done`` (the log of what was done) and the state a later action
+takes over (``_turns``: the hand turning each shaft)."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from ..kernel import PRIO_INPUT
+from ..time import parse_duration
+from .check import _fmt_time
+from .faults import FAULTS
+
+TURN_STEP = "1ms"                  # the hand of a "turn" re-sets the shaft speed this often
+
+
+class Action:
+    """One kind of action. ``fields``: its keys, ``{name: (type, required)}``."""
+
+    fields: ClassVar[dict] = {}
+
+    def parse(self, sc, i: int, name: str, spec) -> dict:
+        """The checked value of ``name = spec`` in ``[[at]]`` #i+1 (ConfigError at its line)."""
+        return sc._fields("at", i, (name,), spec, self.fields)
+
+    def prepare(self, sc, sim, spec: dict, line: int, where: str):
+        """Check ``spec`` against ``sim``; return the function that does the action."""
+        raise NotImplementedError
+
+
+class Publish(Action):
+    """``publish = { "<topic>" = value, ... }``: messages to the firmware's inputs."""
+
+    def parse(self, sc, i, name, spec):
+        where, line = f"[[at]] #{i + 1}", sc._line("at", i, name)
+        if not isinstance(spec, dict) or not spec:
+            raise sc._err(line, f"{where}: publish = {spec!r}: expected a table "
+                          "{ \"/topic\" = value, ... }")
+        for topic, value in spec.items():
+            if not isinstance(value, (bool, int, float, str)):
+                raise sc._err(sc._line("at", i, name, topic),
+                              f"{where}: publish {topic!r} = {value!r}: expected a number, "
+                              "true/false or a string")
+        return dict(spec)
+
+    def prepare(self, sc, sim, spec, line, where):
+        msgs = []
+        for topic, value in spec.items():
+            fw, name = sc._firmware_for(sim, topic, line, where)
+            sc._check_input(fw, name, line, where)
+            msgs.append((fw, name, topic, value))
+
+        def fn():
+            for fw, name, topic, value in msgs:
+                fw.publish(name, value)
+                sc._done(f"publish {topic} = {value!r}")
+        return fn
+
+
+class Torque(Action):
+    """``torque = { motor, nm }``: the motor's external load torque from now on."""
+
+    fields: ClassVar[dict] = {"motor": ("str", True), "nm": ("number", True)}
+
+    def prepare(self, sc, sim, spec, line, where):
+        motor = sc._part(sim, spec["motor"], "motor", line, where)
+
+        def fn():
+            motor.apply_load_torque(spec["nm"])
+            sc._done(f"torque {spec['motor']} {spec['nm']:g} N·m")
+        return fn
+
+
+class Turn(Action):
+    """``turn = { motor, angle, over }``: a hand turns the output shaft."""
+
+    fields: ClassVar[dict] = {"motor": ("str", True), "angle": ("number", True), "over": ("duration", False)}
+
+    def parse(self, sc, i, name, spec):
+        out = super().parse(sc, i, name, spec)
+        out.setdefault("over", parse_duration("100ms"))
+        if out["over"] <= 0:
+            raise sc._err(sc._line("at", i, name, "over"), f"[[at]] #{i + 1}: turn.over must be positive")
+        return out
+
+    def prepare(self, sc, sim, spec, line, where):
+        """A hand turns the output shaft to ``angle`` over ``over``, at constant speed: every
+        TURN_STEP it sets the shaft speed that reaches the next point of the ramp (so the shaft
+        moves continuously and the encoder emits every edge at its tick), and stops it at the end."""
+        motor = sc._part(sim, spec["motor"], "motor", line, where)
+        tb, kernel = sim.timebase, sim.kernel
+        over = sc._ticks(tb, spec["over"], line, f"{where}: over")
+        n = max(1, over // tb.ticks(TURN_STEP))
+        hz = tb.base_hz
+
+        def fn():
+            token = object()
+            sc._turns[spec["motor"]] = token       # a later turn of the same shaft takes over
+            t0 = kernel.now
+            n_ratio = motor.params.gear_ratio
+            a0, a1 = motor.angle, spec["angle"] * n_ratio
+            sc._done(f"turn {spec['motor']} to {spec['angle']:g} rad over {_fmt_time(spec['over'])}")
+
+            def step(k):
+                if sc._turns.get(spec["motor"]) is not token:
+                    return
+                if k == n:
+                    motor.set_state(speed=0.0)
+                    return
+                t_next = t0 + ((k + 1) * over) // n
+                target = a0 + (a1 - a0) * (k + 1) / n
+                motor.set_state(speed=(target - motor.angle) * hz / (t_next - kernel.now))
+                kernel.at(t_next, step, k + 1, prio=PRIO_INPUT)
+            step(0)
+        return fn
+
+
+class Follow(Action):
+    """``follow = { from, to, period }``: a host-side forwarder from an output to an input."""
+
+    fields: ClassVar[dict] = {"from": ("str", True), "to": ("str", True), "period": ("duration", False)}
+
+    def parse(self, sc, i, name, spec):
+        out = super().parse(sc, i, name, spec)
+        out.setdefault("period", parse_duration("10ms"))
+        if out["period"] <= 0:
+            raise sc._err(sc._line("at", i, name, "period"), f"[[at]] #{i + 1}: follow.period must be positive")
+        return out
+
+    def prepare(self, sc, sim, spec, line, where):
+        src_fw, src = sc._firmware_for(sim, spec["from"], line, where)
+        sc._check_output(src_fw, src, line, where)
+        dst_fw, dst = sc._firmware_for(sim, spec["to"], line, where)
+        sc._check_input(dst_fw, dst, line, where)
+        kernel = sim.kernel
+        period = sc._ticks(sim.timebase, spec["period"], line, f"{where}: period")
+
+        def forward():
+            value = src_fw.topic(src)
+            if value is not None:
+                dst_fw.publish(dst, value)
+            kernel.at(kernel.now + period, forward, prio=PRIO_INPUT)
+
+        def fn():
+            sc._done(f"follow {spec['from']} -> {spec['to']} every {_fmt_time(spec['period'])}")
+            forward()
+        return fn
+
+
+class Fault(Action):
+    """``fault = { kind, <part key> = ..., <the kind's keys>, clear }``: injects a fault or ends
+    it; the kinds are :data:`~.faults.FAULTS`."""
+
+    def parse(self, sc, i, name, spec):
+        key = (name,)
+        where = f"[[at]] #{i + 1}: fault"
+        line = sc._line("at", i, *key)
+        if not isinstance(spec, dict):
+            raise sc._err(line, f"{where} = {spec!r}: expected a table {{ kind = \"...\", ... }}")
+        if "kind" not in spec:
+            raise sc._err(line, f"{where}: missing kind = \"...\" (kinds: {', '.join(FAULTS)})")
+        kind = spec["kind"]
+        if kind not in FAULTS:
+            raise sc._err(sc._line("at", i, *key, "kind"),
+                          f"{where}: unknown fault kind {kind!r} (kinds: {', '.join(FAULTS)})")
+        fault = FAULTS[kind]
+        fields = fault.fields
+        clear = sc._value("at", i, key + ("clear",), spec["clear"], "bool") if "clear" in spec else False
+        if clear and not fault.clearable:
+            raise sc._err(sc._line("at", i, *key, "clear"), f"{where}: {kind} cannot be cleared "
+                          "(it is momentary)")
+        if clear:   # ending a fault: only which part (and the side of a bridge)
+            fields = {k: (t, False) for k, (t, _) in fields.items() if k == "side"}
+        allowed = {fault.part_key: ("str", True), **fields}
+        rest = {k: v for k, v in spec.items() if k not in ("kind", "clear")}
+        out = sc._fields("at", i, key, rest, allowed)
+        out["kind"], out["clear"] = kind, clear
+
+        def bad(msg, *field):
+            return sc._err(sc._line("at", i, *key, *field), f"{where}: {msg}")
+        fault.check(out, clear, bad)
+        return out
+
+    def prepare(self, sc, sim, spec, line, where):
+        kind, clear = spec["kind"], spec["clear"]
+        fault = FAULTS[kind]
+        target = spec[fault.part_key]
+        what = f"fault {kind} {target}" + (" cleared" if clear else "")
+        act = fault.prepare(sc, sim, fault.resolve(sc, sim, target, line, where), spec, line, where)
+
+        def fn():
+            act()
+            sc._done(what)
+        return fn
+
+
+# the actions an [[at]] table may hold, in the order the messages list them
+ACTION_KINDS = {"publish": Publish(), "torque": Torque(), "turn": Turn(), "follow": Follow(), "fault": Fault()}
+ACTIONS = tuple(ACTION_KINDS)

@@ -1,0 +1,77 @@
+"""Entry points: the shipped scenarios, loading a file (a path or a shipped name) into a checked
+:class:`~.model.Scenario`, and running one."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+from ..errors import ConfigError, McusimError
+from .model import Scenario
+from .source import _Lines
+
+SCENARIO_DIR = Path(__file__).resolve().parent.parent.parent / "scenarios"
+
+
+def scenario_names() -> list[str]:
+    """The example scenarios shipped in ``scenarios/``."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")) if SCENARIO_DIR.is_dir() else []
+
+
+def _resolve(path) -> Path:
+    p = Path(path)
+    if p.exists() or p.suffix == ".toml":
+        return p
+    shipped = SCENARIO_DIR / f"{path}.toml"
+    return shipped if shipped.exists() else p
+
+
+def load_scenario(path) -> Scenario:
+    """Parse and check a scenario file (a path, or the name of one in ``scenarios/``). Any
+    mistake raises ConfigError ``<file>:<line>: <problem>``."""
+    p = _resolve(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        known = ", ".join(scenario_names())
+        raise ConfigError(f"cannot read scenario {str(path)!r}: {exc.strerror}"
+                          + (f" (shipped scenarios: {known})" if known else "")) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)
+        if m:
+            raise ConfigError(f"{p}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
+        line = text.count("\n") + 1 if "end of document" in msg else 1
+        raise ConfigError(f"{p}:{line}: invalid TOML: {msg}") from None
+    return Scenario(p, data, _Lines(text))
+
+
+def run_scenario(path, board: str | None = None, *, duration=None, overrides: dict | None = None,
+                 firmware: bool = True, setup=None, runner=None):
+    """Load (or take) a scenario, build its board with ``[set]`` and ``overrides`` (``--set``
+    pairs, which win), apply it, run it for its duration (or ``duration``) and return
+    ``(sim, scenario)``. ``setup(sim)`` is called before the run (attach a VCD trace there);
+    ``runner(sim, seconds)`` runs it (default ``sim.run(seconds=...)``); the simulation is closed
+    afterwards. ``scenario.failed`` tells whether an expectation failed."""
+    sc = path if isinstance(path, Scenario) else load_scenario(path)
+    if duration is not None:
+        sc.duration = duration
+    sim = sc.build(board, overrides, firmware)
+    try:
+        sc.apply(sim)
+    except McusimError:
+        sim.discard()
+        raise
+    try:
+        if setup is not None:
+            setup(sim)
+        if runner is None:
+            sim.run(seconds=sc.duration)
+        else:
+            runner(sim, sc.duration)
+    finally:
+        sim.close()
+    return sim, sc

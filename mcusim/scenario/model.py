@@ -1,0 +1,259 @@
+"""The :class:`Scenario`: a parsed and checked scenario file (the tables and their order, the
+``[set]`` overrides, the duration), which builds its board and applies its actions (:mod:`.actions`),
+expectations and report (:mod:`.expect`) to a simulation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..kernel import PRIO_INPUT
+from ..time import parse_duration
+from .actions import ACTION_KINDS, ACTIONS
+from .check import Checker, _fmt_time
+from .expect import (
+    REPORT_FIELDS,
+    ExpectResult,
+    _Expect,
+    check_report_path,
+    format_results,
+    parse_expect,
+    plan_expect,
+    plan_follow,
+)
+from .source import _Lines
+
+TABLES = ("scenario", "set", "at", "expect", "report")
+SCENARIO_KEYS = ("board", "duration", "description")
+
+
+@dataclass
+class _Step:
+    index: int
+    time: Fraction
+    line: int
+    actions: list          # [(name, spec dict, line)]
+
+
+class Scenario(Checker):
+    """A parsed and checked scenario (see the module and ``docs/scenarios.md``).
+
+    Attributes: ``path``, ``name`` (file stem), ``description``, ``board`` (or None),
+    ``duration`` (exact seconds, a Fraction; assignable, e.g. ``sc.duration = "1s"`` for a shorter
+    run), ``overrides`` (the ``[set]`` table, flattened to ``--set`` keys). After :meth:`apply`
+    and a run: ``results`` (:class:`ExpectResult` per ``[[expect]]``, in file order), ``failed``,
+    ``report`` (the ``[report]`` measurements), ``log`` ((tick, text) of every action done).
+    """
+
+    def __init__(self, path, data: dict, lines: _Lines):
+        self.path = str(path)
+        self.name = Path(path).stem
+        self._lines = lines
+        self._check(data)
+        self._sim = None
+        self.log: list[tuple[int, str]] = []
+        self._follow = None
+
+    # --- parsing --------------------------------------------------------------------------------
+    def _check(self, data: dict) -> None:
+        for k in data:
+            if k not in TABLES:
+                raise self._err(self._line(None, None, k),
+                                f"unknown table or key {k!r} (known: [scenario], [set], [[at]], [[expect]], [report])")
+        head = data.get("scenario")
+        if not isinstance(head, dict):
+            raise self._err(self._line("scenario") if head is not None else 1,
+                            "missing [scenario] table (with duration = \"...\")")
+        self._unknown("scenario", None, head, SCENARIO_KEYS)
+        self.board = self._value("scenario", None, ("board",), head["board"], "str") if "board" in head else None
+        self.description = (self._value("scenario", None, ("description",), head["description"], "str")
+                            if "description" in head else "")
+        if "duration" not in head:
+            raise self._err(self._line("scenario"), "[scenario]: missing duration = \"...\" (e.g. \"2s\")")
+        self._duration = self._value("scenario", None, ("duration",), head["duration"], "duration")
+        if self._duration <= 0:
+            raise self._err(self._line("scenario", None, "duration"), "[scenario]: duration must be positive")
+        self.file_duration = self._duration
+
+        self.overrides: dict = {}
+        self._set_lines: dict = {}
+        sets = data.get("set", {})
+        if not isinstance(sets, dict):
+            raise self._err(self._line(None, None, "set"), "set must be a table [set]")
+        self._flatten_set(sets, ())
+
+        self.steps: list[_Step] = []
+        prev = None
+        for i, entry in enumerate(self._array(data, "at")):
+            step = self._parse_at(i, entry)
+            if prev is not None and step.time < prev.time:
+                raise self._err(self._line("at", i, "time"),
+                                f"[[at]] #{i + 1}: time {_fmt_time(step.time)} is before the time of "
+                                f"[[at]] #{prev.index + 1} ({_fmt_time(prev.time)}, line {prev.line}): "
+                                f"[[at]] tables must be in time order")
+            self.steps.append(step)
+            prev = step
+        self.expects: list[_Expect] = [parse_expect(self, i, e) for i, e in enumerate(self._array(data, "expect"))]
+
+        self.report_spec: dict = {}
+        rep = data.get("report", {})
+        if not isinstance(rep, dict):
+            raise self._err(self._line(None, None, "report"), "report must be a table [report]")
+        self._unknown("report", None, rep, tuple(REPORT_FIELDS))
+        for name, fields in REPORT_FIELDS.items():
+            if name in rep:
+                self.report_spec[name] = self._fields("report", None, (name,), rep[name], fields)
+        for e in self.expects:
+            if e.source[0] == "report":
+                check_report_path(self, e)
+
+    def _array(self, data, name) -> list:
+        arr = data.get(name, [])
+        if not isinstance(arr, list) or not all(isinstance(x, dict) for x in arr):
+            raise self._err(self._line(name), f"{name} must be an array of tables: [[{name}]]")
+        return arr
+
+    def _flatten_set(self, d: dict, path: tuple) -> None:
+        for k, v in d.items():
+            key = path + (k,)
+            if isinstance(v, dict):      # unquoted dotted keys: motor1.load_inertia = 2e-5
+                self._flatten_set(v, key)
+                continue
+            name = ".".join(key)
+            line = self._line("set", None, *key)
+            if not name or not isinstance(v, (bool, int, float, str)):
+                raise self._err(line, f"[set]: {name} = {v!r}: expected a number, true/false or a string")
+            self.overrides[name] = v
+            self._set_lines[name] = line
+
+    def _parse_at(self, i: int, entry: dict) -> _Step:
+        where = f"[[at]] #{i + 1}"
+        self._unknown("at", i, entry, ("time",) + ACTIONS)
+        if "time" not in entry:
+            raise self._err(self._line("at", i), f"{where}: missing time = \"...\"")
+        t = self._value("at", i, ("time",), entry["time"], "duration")
+        if t > self._duration:
+            raise self._err(self._line("at", i, "time"), f"{where}: time {_fmt_time(t)} is after the end "
+                            f"of the run (duration {_fmt_time(self._duration)})")
+        actions = [(name, ACTION_KINDS[name].parse(self, i, name, spec), self._line("at", i, name))
+                   for name, spec in entry.items() if name != "time"]
+        if not actions:
+            raise self._err(self._line("at", i), f"{where}: no action (one or more of {', '.join(ACTIONS)})")
+        return _Step(i, t, self._line("at", i, "time"), actions)
+
+    # --- duration ---------------------------------------------------------------------------------
+    @property
+    def duration(self) -> Fraction:
+        return self._duration
+
+    @duration.setter
+    def duration(self, value) -> None:
+        d = parse_duration(value)
+        if d <= 0:
+            raise ConfigError(f"{self.path}: duration must be positive, not {value!r}")
+        self._duration = d
+
+    # --- building and applying ------------------------------------------------------------------------
+    def check_board(self, board: str) -> None:
+        """ConfigError if the scenario names a board and ``board`` (a name or a profile path) is
+        another one."""
+        if self.board is None or board == self.board:
+            return
+        from ..board import read_profile
+        profile = read_profile(board)[0]
+        name = (profile.get("board") or profile.get("system") or {}).get("name")
+        if name != self.board:
+            raise self._err(self._line("scenario", None, "board"),
+                            f"the scenario is meant for board {self.board!r}, not {board!r}")
+
+    def build(self, board: str | None = None, overrides: dict | None = None, firmware: bool = True):
+        """``mcusim.load(board or self.board, overrides={**self.overrides, **overrides})``; a
+        mistake in ``[set]`` is reported with the file and the line of its key."""
+        from ..sim import load
+        board = board or self.board
+        if board is None:
+            raise self._err(self._line("scenario"), "the scenario names no board (board = \"...\" in "
+                            "[scenario]); give one")
+        self.check_board(board)
+        extra = dict(overrides or {})
+        sets = {**self.overrides, **extra}
+        try:
+            return load(board, firmware=firmware, overrides=sets)
+        except ConfigError as exc:
+            msg = str(exc)
+            mine = [k for k in self.overrides if k not in extra]
+            hits = [k for k in mine if k in msg] or \
+                   [k for k in mine if "." in k and repr(k.rpartition(".")[2]) in msg]
+            if len(hits) == 1:
+                msg = msg.removeprefix(f"--set {hits[0]}: ")
+                raise self._err(self._set_lines[hits[0]], f"[set] {hits[0]}: {msg}") from None
+            if not extra and mine:
+                raise self._err(self._line("set"), f"[set]: {msg}") from None
+            raise
+
+    def apply(self, sim) -> None:
+        """Check the scenario against a built simulation (board, parts, topics, whole ticks) and
+        schedule its actions, report samplers and expectations. Nothing is scheduled if anything
+        is wrong. Times are absolute simulated times (apply before running)."""
+        if self._sim is not None:
+            raise ConfigError(f"{self.path}: this scenario is already applied to a simulation")
+        if self.board is not None and sim.board_name != self.board:
+            raise self._err(self._line("scenario", None, "board"),
+                            f"the scenario is meant for board {self.board!r}, not {sim.board_name!r}")
+        tb, kernel = sim.timebase, sim.kernel
+        end = tb.ticks(self._duration, rounding=True)
+        plan = []                                    # (tick, prio, fn): scheduled once all is checked
+        self._turns, self._stalls, self._sag_loads = {}, {}, {}
+        for step in self.steps:
+            tick = self._ticks(tb, step.time, step.line, f"[[at]] #{step.index + 1}: time")
+            if tick < kernel.now:
+                raise self._err(step.line, f"[[at]] #{step.index + 1}: time {_fmt_time(step.time)} is "
+                                f"already past (the simulation is at {sim.time_s:g} s)")
+            for name, spec, line in step.actions:
+                fn = ACTION_KINDS[name].prepare(self, sim, spec, line, f"[[at]] #{step.index + 1}: {name}")
+                plan.append((tick, PRIO_INPUT, fn))
+        follow = self.report_spec.get("follow")
+        self._follow = None
+        if follow is not None:
+            plan.extend(plan_follow(self, sim, follow, end))
+        plan.extend(plan_expect(self, sim, e, end) for e in self.expects)
+        self._sim = sim
+        self.log = []
+        for tick, prio, fn in plan:
+            kernel.at(tick, fn, prio=prio)
+
+    def _done(self, text):
+        """Log an action done now (for the actions of :mod:`.actions`)."""
+        self.log.append((self._sim.kernel.now, text))
+
+    # --- outcomes -------------------------------------------------------------------------------------
+    @property
+    def report(self) -> dict:
+        """The ``[report]`` measurements so far: ``{"follow": {leader, follower, from_s, samples,
+        max_abs_error_rad, rms_error_rad, final_abs_error_rad}}`` (empty without ``[report]``)."""
+        if self._follow is None:
+            return {}
+        return {"follow": {k: v for k, v in self._follow.items() if not k.startswith("_")}}
+
+    @property
+    def results(self) -> list[ExpectResult]:
+        """One :class:`ExpectResult` per ``[[expect]]``; one not checked yet (the run ended
+        before its time) has ``time = None``, ``got = None`` and ``passed = False``."""
+        return [e.result or ExpectResult(e.name, None, e.expected, None, False, e.line) for e in self.expects]
+
+    @property
+    def failed(self) -> bool:
+        return any(not r.passed for r in self.results)
+
+    def report_entries(self) -> dict:
+        """``{"scenario": {...}}`` for the run summary: file, board, duration, passed, the
+        expectations and the report."""
+        return {"scenario": {"file": self.path, "name": self.name, "board": self.board,
+                             "duration_s": float(self._duration), "passed": not self.failed,
+                             "expectations": [r.as_dict() for r in self.results], "report": self.report}}
+
+    def format_results(self) -> list[str]:
+        """One line per expectation (PASS/FAIL, name, value, expected, line) and the report."""
+        return format_results(self.results, self.report, self.path)

@@ -1,0 +1,110 @@
+"""The command line's outputs and scripts: --scenario, --csv, --plot, --register-log, `mcusim trace`,
+the GTKWave layout, and the messages and exit codes of bad input."""
+
+import json
+import textwrap
+
+import pytest
+
+from mcusim.cli import main
+
+SCENARIO = """
+[scenario]
+board = "nucleo-f746"
+duration = "30ms"
+
+[[at]]
+time = "1ms"
+publish = { "/motor1/set_pos" = 0.2 }
+
+[[expect]]
+name = "moving"
+time = "30ms"
+part = "motor1"
+attr = "output_angle"
+min = {min}
+"""
+
+
+def _scenario(tmp_path, minimum):
+    p = tmp_path / "s.toml"
+    p.write_text(textwrap.dedent(SCENARIO).replace("{min}", str(minimum)))
+    return str(p)
+
+
+def test_scenario_passing_exits_0_and_failing_exits_1_with_the_results(tmp_path, capsys):
+    assert main(["run", "nucleo-f746", "--scenario", _scenario(tmp_path, 0.001), "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "PASS  moving" in out and "simulated 0.030000 s" in out
+    assert main(["run", "nucleo-f746", "--scenario", _scenario(tmp_path, 5.0), "-q"]) == 1
+    captured = capsys.readouterr()
+    assert "FAIL  moving" in captured.out and "a scenario expectation failed" in captured.err
+
+
+@pytest.mark.parametrize("text, where", [
+    ('[scenario]\nduration = "30ms"\n[[at]]\ntime = "2ms"\nfoo = 1\n', "s.toml:5"),          # unknown key
+    ('[scenario]\nduration = "30qs"\n', "s.toml:2"),                                           # bad unit
+    ('[scenario]\nduration = "30ms"\n[[at]]\ntime = "5ms"\npublish = { "/motor1/set_pos" = 1 }\n'
+     '[[at]]\ntime = "2ms"\npublish = { "/motor1/set_pos" = 1 }\n', "s.toml:7"),               # out of order
+    ('[scenario\nduration = "30ms"\n', "s.toml"),                                              # malformed
+])
+def test_a_scenario_mistake_is_one_line_naming_file_and_line_with_exit_2(tmp_path, capsys, text, where):
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    assert main(["run", "nucleo-f746", "--scenario", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and where in err, err
+
+
+def test_missing_board_and_bad_unit_are_usage_errors(capsys):
+    assert main(["run", "no-such-board", "--duration", "1ms"]) == 2
+    assert "unknown board 'no-such-board'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "nucleo-f746", "--sample", "1 parsec"])
+    assert exc.value.code == 2
+
+
+def test_csv_has_units_in_the_header_and_rows_on_the_grid(tmp_path, capsys):
+    csv = tmp_path / "run.csv"
+    assert main(["run", "nucleo-f746", "--duration", "10ms", "--set", "/motor1/set_pos=0.1",
+                 "--csv", str(csv), "--sample", "2ms", "-q"]) == 0
+    lines = csv.read_text().splitlines()
+    header = lines[0].split(",")
+    assert header[0] == "time_s" and "motor1.angle_rad" in header and "motor1.current_a" in header
+    assert [row.split(",")[0] for row in lines[1:]] == ["0", "0.002", "0.004", "0.006", "0.008", "0.01"]
+
+
+def test_plot_writes_a_png(tmp_path, capsys):
+    png = tmp_path / "run.png"
+    assert main(["run", "pro-mini", "--duration", "50ms", "--plot", str(png), "-q"]) == 0
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+def test_vcd_comes_with_a_gtkwave_layout(tmp_path, capsys):
+    vcd = tmp_path / "run.vcd"
+    assert main(["run", "nucleo-f746", "--duration", "2ms", "--vcd", str(vcd), "-q"]) == 0
+    gtkw = (tmp_path / "run.gtkw").read_text()
+    assert f'[dumpfile] "{vcd}"' in gtkw and "nucleo-f746.PE9" in gtkw
+    assert "GTKWave layout" in capsys.readouterr().out
+
+
+def test_register_log_writes_json_lines_filtered_by_peripheral(tmp_path, capsys):
+    log = tmp_path / "regs.jsonl"
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--register-log", str(log),
+                 "--register-log-filter", "TIM2", "-q"]) == 0
+    recs = [json.loads(line) for line in log.read_text().splitlines()]
+    assert recs and all(r["reg"].startswith("TIM2.") for r in recs)
+    # the thesis's bridge B timer: ARR written at start-up from the real 108 MHz clock (50 kHz)
+    arr = [r for r in recs if r["reg"] == "TIM2.ARR" and r["op"] == "write"]
+    assert arr[0]["addr"] == "0x4000002c" and arr[0]["changed"] == {"ARR": [0, 2159]}
+
+
+def test_trace_prints_the_register_log_on_stdout_and_the_summary_on_stderr(capsys):
+    assert main(["trace", "nucleo-f746", "--duration", "10us", "--filter", "TIM1.CR1"]) == 0
+    captured = capsys.readouterr()
+    recs = [json.loads(line) for line in captured.out.splitlines()]
+    assert [r["op"] for r in recs][:2] == ["read", "write"] and {r["reg"] for r in recs} == {"TIM1.CR1"}
+    cen = [r for r in recs if "CEN" in r.get("changed", {})]
+    assert cen and cen[0]["changed"]["CEN"] == [0, 1]
+    assert "simulated" in captured.err

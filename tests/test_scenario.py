@@ -1,0 +1,263 @@
+"""Scenarios (mcusim.scenario): parsing with file:line errors, exact action timing, the fault
+kinds, expectations and the shipped examples (run with shorter durations)."""
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from mcusim.errors import ConfigError
+from mcusim.scenario import load_scenario, run_scenario, scenario_names
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+def write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text).lstrip("\n"))
+    return p
+
+
+def error_of(fn, *args):
+    with pytest.raises(ConfigError) as info:
+        fn(*args)
+    return str(info.value)
+
+
+HEAD = """
+[scenario]
+board = "nucleo-f746"
+duration = "20ms"
+"""
+
+
+# --- every mistake: one message naming the file, the line and the problem --------------------------
+@pytest.mark.parametrize("body, line, problem", [
+    # unknown key in an [[at]] table (line 7)
+    ('[[at]]\ntime = "1ms"\ntorq = { motor = "motor1", nm = 0.1 }\n', 6, "unknown key 'torq'"),
+    # bad unit
+    ('[[at]]\ntime = "5xs"\npublish = { "/motor1/set_pos" = 1.0 }\n', 5, "bad duration '5xs'"),
+    # time out of order: the second [[at]] is earlier than the first
+    (('[[at]]\ntime = "10ms"\npublish = { "/motor1/set_pos" = 1.0 }\n\n'
+      '[[at]]\ntime = "2ms"\npublish = { "/motor1/set_pos" = 0.5 }\n'), 9, "time order"),
+    # unknown fault kind, inline table: the line of the fault key
+    ('[[at]]\ntime = "1ms"\nfault = { kind = "gremlins", motor = "motor1" }\n', 6, "unknown fault kind 'gremlins'"),
+    # unknown fault kind in a sub-table: the line of kind itself
+    ('[[at]]\ntime = "1ms"\n[at.fault]\nmotor = "motor1"\nkind = "gremlins"\n', 8, "unknown fault kind 'gremlins'"),
+    # missing field
+    ('[[at]]\ntime = "1ms"\nturn = { motor = "motor1" }\n', 6, "missing angle"),
+    # unknown key in an [[expect]] after several [[at]]
+    (('[[at]]\ntime = "1ms"\npublish = { "/motor1/set_pos" = 1.0 }\n[[expect]]\ntopic = "/motor1/get_pos"\n'
+      'approx = 1.0\ntoll = 0.1\n'), 10, "unknown key 'toll'"),
+    # an expectation without a check
+    ('\n[[expect]]\npart = "motor1"\nattr = "output_angle"\n', 5, "give one check"),
+    # an action after the end of the run
+    ('[[at]]\ntime = "1s"\npublish = { "/motor1/set_pos" = 1.0 }\n', 5, "after the end of the run"),
+    # unknown table
+    ('[scenaro]\nboard = "x"\n', 4, "unknown table or key 'scenaro'"),
+])
+def test_bad_input_names_file_line_and_problem(tmp_path, body, line, problem):
+    p = write(tmp_path, HEAD + body, "bad.toml")
+    msg = error_of(load_scenario, p)
+    assert f"bad.toml:{line}:" in msg, msg
+    assert problem in msg, msg
+    assert "\n" not in msg
+
+
+def test_malformed_toml_names_file_and_line(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ms"\npublish = { "/motor1/set_pos" = }\n', "broken.toml")
+    msg = error_of(load_scenario, p)
+    assert "broken.toml:6:" in msg and "invalid TOML" in msg
+
+
+def test_missing_scenario_table_and_duration(tmp_path):
+    assert "no-head.toml:1:" in error_of(load_scenario, write(tmp_path, '[set]\n"motor1.R" = 2.0\n', "no-head.toml"))
+    msg = error_of(load_scenario, write(tmp_path, '\n[scenario]\nboard = "pro-mini"\n', "no-dur.toml"))
+    assert "no-dur.toml:1:" in msg and "missing duration" in msg
+
+
+def test_unknown_part_is_reported_at_apply_with_its_line(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ms"\ntorque = { motor = "motor9", nm = 0.1 }\n', "part.toml")
+    sc = load_scenario(p)
+    sim = sc.build(firmware=False)
+    msg = error_of(sc.apply, sim)
+    assert "part.toml:6:" in msg and "no part 'motor9'" in msg and "motor1" in msg
+    # a part of the wrong kind
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ms"\ntorque = { motor = "encoder1", nm = 0.1 }\n', "kind.toml")
+    msg = error_of(load_scenario(p).apply, sim)
+    assert "kind.toml:6:" in msg and "not a motor" in msg
+
+
+def test_unknown_topic_is_reported_at_apply_with_its_line(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "0s"\npublish = { "/motor3/set_pos" = 1.0 }\n'
+              '[[expect]]\ntopic = "/motor1/get_pos"\napprox = 0\ntol = 1\n', "topic.toml")
+    sc = load_scenario(p)
+    sim = sc.build()
+    msg = error_of(sc.apply, sim)
+    assert "topic.toml:6:" in msg and "/motor3/set_pos" in msg
+    sim.discard()
+    p = write(tmp_path, HEAD + '[[expect]]\ntopic = "/motor1/speed"\nmax = 1\n', "out.toml")
+    sc = load_scenario(p)
+    sim = sc.build()
+    msg = error_of(sc.apply, sim)
+    assert "out.toml:5:" in msg and "/motor1/speed" in msg
+    sim.discard()
+
+
+def test_bad_set_key_names_its_line(tmp_path):
+    p = write(tmp_path, HEAD + '\n[set]\n"motor1.load_inertia" = 2e-5\n"motor9.R" = 2.0\n', "set.toml")
+    msg = error_of(load_scenario(p).build)
+    assert "set.toml:7:" in msg and "motor9" in msg
+    p = write(tmp_path, HEAD + '\n[set]\nmotor1.Rx = 2.0\n', "param.toml")
+    msg = error_of(load_scenario(p).build)
+    assert "param.toml:6:" in msg and "'Rx'" in msg
+
+
+def test_board_mismatch(tmp_path):
+    sc = load_scenario(write(tmp_path, HEAD, "b.toml"))
+    msg = error_of(sc.build, "pro-mini")
+    assert "b.toml:2:" in msg and "nucleo-f746" in msg and "pro-mini" in msg
+
+
+# --- timing ---------------------------------------------------------------------------------------
+def test_action_runs_at_its_exact_tick(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ms"\ntorque = { motor = "motor1", nm = 0.05 }\n', "t.toml")
+    sc = load_scenario(p)
+    sim = sc.build(firmware=False)
+    sc.apply(sim)
+    t = sim.timebase.ticks("1ms")
+    motor = sim.part("motor1")
+    sim.kernel.run_until(t - 1)
+    assert motor.params.load_torque == 0.0 and sc.log == []
+    sim.kernel.run_until(t)
+    assert motor.params.load_torque == 0.05
+    assert sc.log == [(t, "torque motor1 0.05 N·m")]
+
+
+def test_time_not_on_a_tick_is_an_error(tmp_path):
+    # 1/216 MHz base tick: 1 ns is not a whole number of ticks
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ns"\ntorque = { motor = "motor1", nm = 0.05 }\n', "ns.toml")
+    sc = load_scenario(p)
+    msg = error_of(sc.apply, sc.build(firmware=False))
+    assert "ns.toml:5:" in msg and "base ticks" in msg
+
+
+# --- actions and faults ---------------------------------------------------------------------------
+def test_turn_moves_the_shaft_continuously_and_the_encoder_counts_every_edge(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "1ms"\nturn = { motor = "motor1", angle = 0.2, over = "10ms" }\n'
+              '[[at]]\ntime = "12ms"\nfault = { kind = "missing_edges", encoder = "encoder1", count = 5 }\n'
+              '[[at]]\ntime = "13ms"\nturn = { motor = "motor1", angle = 0.0, over = "5ms" }\n', "turn.toml")
+    sc = load_scenario(p)
+    sim = sc.build(firmware=False)
+    sc.apply(sim)
+    motor, enc = sim.part("motor1"), sim.part("encoder1")
+    sim.run(seconds="12ms")
+    assert motor.output_angle == pytest.approx(0.2, abs=1e-4) and motor.speed == 0.0
+    counts = round(0.2 * 30 * 64 / (2 * 3.141592653589793))        # 61 counts at the motor shaft
+    assert enc.position == enc.edges == counts
+    sim.run(seconds="8ms")
+    assert motor.output_angle == pytest.approx(0.0, abs=1e-4)
+    assert enc.position == 0 and enc.dropped == 5 and enc.edges == 2 * counts - 5
+
+
+def test_encoder_glitch_is_a_pulse_of_the_given_width(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "2ms"\n'
+              'fault = { kind = "encoder_glitch", encoder = "encoder2", channel = "B", width = "2us" }\n', "g.toml")
+    sc = load_scenario(p)
+    sim = sc.build(firmware=False)
+    sc.apply(sim)
+    net, seen = sim.pin("PD13"), []
+    net.listen(lambda n: seen.append((sim.now, n.level)))
+    sim.run(seconds="3ms")
+    t = sim.timebase.ticks("2ms")
+    assert seen == [(t, 1), (t + sim.timebase.ticks("2us"), 0)]
+
+
+def test_stall_holds_the_shaft_until_cleared(tmp_path):
+    p = write(tmp_path, HEAD.replace("20ms", "200ms") +
+              '[[at]]\ntime = "0s"\npublish = { "/motor1/set_pos" = 1.57 }\n'
+              '[[at]]\ntime = "40ms"\nfault = { kind = "stall", motor = "motor1" }\n'
+              '[[at]]\ntime = "80ms"\nfault = { kind = "stall", motor = "motor1", clear = true }\n', "stall.toml")
+    sc = load_scenario(p)
+    sim = sc.build()
+    sc.apply(sim)
+    motor = sim.part("motor1")
+    sim.run(seconds="40ms")
+    jammed = motor.output_angle
+    assert jammed > 0.05
+    sim.run(seconds="39ms")
+    assert motor.output_angle == jammed and motor.stuck and abs(motor.current) > 1.0
+    sim.run(seconds="40ms")
+    assert motor.output_angle > jammed + 0.1
+    assert motor.params.tau_s == 5.0e-3
+
+
+def test_overtemperature_on_the_pro_mini(tmp_path):
+    p = write(tmp_path, '[scenario]\nboard = "pro-mini"\nduration = "30ms"\n'
+              '[[at]]\ntime = "0s"\npublish = { velocity = 10 }\n'
+              '[[at]]\ntime = "10ms"\nfault = { kind = "overtemperature", bridge = "ibt2", side = "R" }\n', "ot.toml")
+    sim, sc = run_scenario(p)
+    assert sim.part("ibt2").overtemp
+    assert [text for _, text in sc.log] == ["publish velocity = 10", "fault overtemperature ibt2"]
+
+
+def test_rover_faults_battery_estop_and_a_silent_module(tmp_path):
+    p = write(tmp_path, '[scenario]\nboard = "elementall"\nduration = "4ms"\n'
+              '[[at]]\ntime = "1ms"\nfault = { kind = "battery_sag", battery = "battery", soc = 0.2, amps = 30 }\n'
+              '[[at]]\ntime = "1ms"\nfault = { kind = "estop", estop = "estop" }\n'
+              '[[at]]\ntime = "2ms"\nfault = { kind = "i2c_silent", board = "mcm2" }\n'
+              '[[expect]]\ntime = "3ms"\npart = "estop"\nattr = "pressed"\nequals = true\n'
+              '[[expect]]\npart = "battery"\nattr = "soc"\nmax = 0.2\n', "rover.toml")
+    sim, sc = run_scenario(p)
+    twi = sim.members["mcm2"]["mcu"].periph["TWI"]
+    assert twi not in twi.bus.slaves and sim.members["mcm1"]["mcu"].periph["TWI"] in twi.bus.slaves
+    assert sim.part("battery").current >= 30 and sim.part("battery").voltage() < 12.0
+    assert not sc.failed, sc.format_results()
+    with pytest.raises(ConfigError, match="rover.toml:.*no board 'mcm9'"):
+        p.write_text(p.read_text().replace('"mcm2"', '"mcm9"'))
+        run_scenario(p)
+
+
+# --- expectations ---------------------------------------------------------------------------------
+def test_failing_expectation_sets_failed(tmp_path):
+    p = write(tmp_path, HEAD + '[[at]]\ntime = "0s"\npublish = { "/motor1/set_pos" = 1.57 }\n'
+              '[[expect]]\nname = "there already"\npart = "motor1"\nattr = "output_angle"\napprox = 1.57\ntol = 0.01\n'
+              '[[expect]]\nname = "moving"\ntime = "10ms"\npart = "motor1"\nattr = "output_angle"\nmin = 0.001\n',
+              "fail.toml")
+    sim, sc = run_scenario(p)
+    first, second = sc.results
+    assert first.name == "there already" and not first.passed and first.time == pytest.approx(0.02)
+    assert first.expected == "1.57 ± 0.01" and first.got == sim.part("motor1").output_angle and first.line == 7
+    assert second.passed and second.time == pytest.approx(0.01)
+    assert sc.failed
+    entry = sc.report_entries()["scenario"]
+    assert entry["passed"] is False and entry["expectations"][0]["passed"] is False
+
+
+def test_expectation_after_a_shortened_run_is_not_reached_and_fails(tmp_path):
+    p = write(tmp_path, HEAD + '[[expect]]\ntime = "15ms"\npart = "motor1"\nattr = "output_angle"\nmax = 1\n', "short.toml")
+    _, sc = run_scenario(p, duration="5ms")
+    (r,) = sc.results
+    assert r.time is None and r.got is None and not r.passed and sc.failed
+
+
+# --- the shipped examples (shorter runs) ------------------------------------------------------------
+def test_examples_are_shipped():
+    assert {"thesis_master_slave", "step_response", "promini_velocity_load"} <= set(scenario_names())
+
+
+@pytest.mark.parametrize("name, duration", [
+    ("step_response", "500ms"),
+    ("thesis_master_slave", "1s"),
+    ("promini_velocity_load", "1.1s"),
+])
+def test_example_passes_its_expectations(name, duration):
+    sc = load_scenario(EXAMPLES / f"{name}.toml")
+    sc.duration = duration
+    sim, sc = run_scenario(sc)
+    assert sim.time_s == pytest.approx(float(sc.duration))
+    assert not sc.failed, "\n".join(sc.format_results())
+    if name == "thesis_master_slave":
+        f = sc.report["follow"]
+        assert f["samples"] == 951 and 0 < f["max_abs_error_rad"] <= 0.5
+        assert sc.report_entries()["scenario"]["report"]["follow"] == f
