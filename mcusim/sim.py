@@ -55,20 +55,25 @@ class Simulation:
         """Core clock cycles since reset."""
         return self.kernel.now // self.mcu.core_clock.period
 
-    def run(self, *, cycles: int | None = None, seconds=None, until=None) -> Simulation:
-        """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), or to absolute ``until`` seconds."""
-        given = [x is not None for x in (cycles, seconds, until)]
+    def run(self, *, cycles: int | None = None, seconds=None, until=None, until_tick: int | None = None,
+            stop=None) -> Simulation:
+        """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), to absolute ``until`` seconds
+        or to base tick ``until_tick``. ``stop()``, if given, is checked after every event; the run
+        ends at the event that makes it true (``mcusim.testing.wait_until`` is built on it)."""
+        given = [x is not None for x in (cycles, seconds, until, until_tick)]
         if sum(given) != 1:
-            raise McusimError("run() takes exactly one of cycles=, seconds=, until=")
+            raise McusimError("run() takes exactly one of cycles=, seconds=, until=, until_tick=")
         if cycles is not None:
             end = self.kernel.now + self.mcu.core_clock.cycles(int(cycles))
         elif seconds is not None:
             end = self.kernel.now + self.timebase.ticks(seconds, rounding=True)
-        else:
+        elif until is not None:
             end = self.timebase.ticks(until, rounding=True)
+        else:
+            end = int(until_tick)
         t0 = _wall.perf_counter()
         try:
-            self.kernel.run_until(end)
+            self.kernel.run_until(end, stop=stop)
         finally:
             self.wall_s += _wall.perf_counter() - t0
         for tr in self._traces:

@@ -1,0 +1,102 @@
+"""pytest plugin: test your firmware against mcusim the way this repository tests its own.
+
+Active once mcusim is installed (entry point ``pytest11: mcusim``). It provides
+
+* the fixture ``mcusim_sim``: a factory, ``sim = mcusim_sim("pro-mini", firmware=True,
+  overrides={...})``, returning a fresh :class:`mcusim.Simulation`; at teardown every simulation
+  it made is closed, and one that never ran is discarded (its firmware tasks dropped);
+* the option ``--mcusim-vcd DIR``: each simulation made by the fixture writes a VCD into DIR,
+  named after the test's node id;
+* the helpers of :mod:`mcusim.testing`, re-exported: ``wait_until``, ``wait_for_pin``,
+  ``run_for``, ``SimTimeout``.
+
+It is light at pytest start: the peripheral, plant and firmware models (and numpy) are imported
+only when the fixture makes its first simulation.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import re
+from pathlib import Path
+
+import pytest
+
+from mcusim.testing import SimTimeout, run_for, wait_for_pin, wait_until
+
+__all__ = ["SimTimeout", "mcusim_sim", "run_for", "vcd_filename", "wait_for_pin", "wait_until"]
+
+_MAX_STEM = 180
+
+
+def pytest_addoption(parser):
+    group = parser.getgroup("mcusim", "mcusim simulations")
+    group.addoption(
+        "--mcusim-vcd", metavar="DIR", default=None, dest="mcusim_vcd",
+        help="write a VCD trace of every simulation made by the mcusim_sim fixture into DIR, "
+             "one file per simulation, named after the test node id")
+
+
+def pytest_report_header(config):
+    vcd_dir = config.getoption("mcusim_vcd", None)
+    if vcd_dir:
+        return f"mcusim: VCD traces to {_vcd_dir(config, vcd_dir)}"
+    return None
+
+
+def vcd_filename(nodeid: str, index: int = 1) -> str:
+    """The VCD file name for the ``index``-th simulation of a test: the node id with ``::`` as
+    ``__`` and anything but letters, digits, ``.``, ``_``, ``-`` as ``_``
+    (``tests/test_fw.py::test_step[10]`` -> ``tests_test_fw.py__test_step_10.vcd``); the second
+    and later simulations of one test get ``-2``, ``-3``...; a very long id is shortened with a hash."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", nodeid.replace("::", "__")).strip("_.") or "test"
+    if len(stem) > _MAX_STEM:
+        digest = hashlib.sha1(nodeid.encode()).hexdigest()[:10]
+        stem = f"{stem[:_MAX_STEM - 11]}-{digest}"
+    suffix = f"-{index}" if index > 1 else ""
+    return f"{stem}{suffix}.vcd"
+
+
+def _vcd_dir(config, value) -> Path:
+    path = Path(value).expanduser()
+    if not path.is_absolute():      # relative to where pytest was started, not to a test's cwd
+        path = Path(config.invocation_params.dir) / path
+    return path
+
+
+@pytest.fixture
+def mcusim_sim(request):
+    """A factory of simulations: ``mcusim_sim(board, firmware=True, overrides=None, **kw)`` is
+    ``mcusim.load(...)``; every simulation it made is closed at teardown (and discarded if it
+    never ran). With ``--mcusim-vcd DIR`` each one also writes ``DIR/<node id>.vcd``."""
+    vcd_option = request.config.getoption("mcusim_vcd", None)
+    vcd_dir = _vcd_dir(request.config, vcd_option) if vcd_option else None
+    made = []
+
+    def factory(board: str, firmware: bool = True, overrides: dict | None = None, **kw):
+        # imported here, not at the top: keeps pytest start free of the models
+        from mcusim.sim import load
+
+        sim = load(board, firmware=firmware, overrides=overrides, **kw)
+        made.append(sim)
+        if vcd_dir is not None:
+            vcd_dir.mkdir(parents=True, exist_ok=True)
+            sim.trace_vcd(vcd_dir / vcd_filename(request.node.nodeid, len(made)))
+        return sim
+
+    factory.simulations = made
+    yield factory
+
+    with contextlib.ExitStack() as stack:   # every simulation is finished even if one fails
+        for sim in made:
+            stack.callback(_finish, sim)
+
+
+def _finish(sim) -> None:
+    never_ran = sim.kernel.now == 0 and sim.kernel.events == 0   # its tasks never started
+    try:
+        sim.close()
+    finally:
+        if never_ran:
+            sim.discard()
