@@ -6,18 +6,38 @@ apart, so order and distinctness of edges are preserved; the exact tick of an ed
 ``round(t_ps · base_hz / 1e12)``.
 
 :func:`write_gtkw` (or ``VcdTrace.write_gtkw()``) writes a GTKWave save file next to the VCD that
-opens it with the signals grouped: one group per board scope with its pins, one with the interrupt
-lines, one with the plant (reals drawn as analog steps). ``gtkwave run.gtkw`` opens both.
+opens it with the signals grouped: one group per board scope with its pins (and USART TXD lines),
+one per I2C bus, one with the interrupt lines, one with the plant (reals drawn as analog steps).
+``gtkwave run.gtkw`` opens both.
 
-Other tools: sigrok-cli 0.5.x reads this VCD as it is (``sigrok-cli -I vcd:downsample=1000 -i
-run.vcd -P pwm:data=PE9 -A pwm``). It takes the ps timescale at face value (a 1 THz sample rate:
-``downsample=1000`` makes 1 ns samples and a fast decode), skips the real variables, and names
-channels by the variable alone, without the scope: in a system, pins of the same name on several
-boards (``PB1`` of mcm1..mcm4) are then ambiguous.
+Buses: every I2C bus of the board (a peripheral's ``bus``, an :class:`mcusim.i2c.I2cBus`; a bus
+shared by the MCUs of a system is traced once) gets wires ``<bus>_SCL``/``<bus>_SDA`` in the scope
+``<board>.<bus>`` (``ciaa-edu.i2c0.i2c0_SCL``; in a system ``elementall.i2c0.i2c0_SCL``), and every
+LPC43xx USART a wire ``<USART>_TXD`` in its MCU's scope, drawn bit by bit from the byte-level models
+by :mod:`mcusim.tracebus` (exact edges; see there for the timing and rounding).
+
+Reorder buffer: those buses report a byte when it ends, so its edges lie in the past. Every value
+change therefore goes through a buffer ordered by (tick, arrival) and is written to the VCD once it
+is older than ``now - lag``; ``lag`` (base ticks) is the largest the bus tracers asked for (2 ms
+when made, more for a slower bus). With no bus traced ``lag`` is 0 and changes are written at
+once, as before. ``flush()`` (after every ``Simulation.run``) writes what is older than
+``now - lag`` and stamps the VCD at that tick, so a VCD read before ``close()`` lacks the last
+``lag`` of signal; ``close()`` writes everything up to ``now`` (edges drawn ahead of ``now``, like
+the SCL fall ``H`` after a START, are dropped if the run ends first).
+
+Other tools: sigrok-cli (0.5.x; 0.7.2 tested) reads this VCD as it is (``sigrok-cli -I vcd:downsample=1000
+-i run.vcd -P pwm:data=PE9 -A pwm``). It takes the ps timescale at face value (a 1 THz sample rate:
+``downsample=1000`` makes 1 ns samples and a fast decode; ``downsample=100000``, 100 ns samples,
+is plenty for I2C at 100 kHz and UART at 115200 Bd), skips the real variables, and names channels
+by the variable alone, without the scope: in a system, pins of the same name on several boards
+(``PB1`` of mcm1..mcm4) are then ambiguous (bus wires carry the bus or USART name for that reason).
+Decoding the buses: ``-P i2c:scl=i2c0_SCL:sda=i2c0_SDA`` and ``-P uart:tx=USART2_TXD:baudrate=115200``.
 """
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import os
 
 from vcd import VCDWriter
@@ -31,17 +51,35 @@ class VcdTrace:
         self.path = os.fspath(path)
         self.base_hz = sim.timebase.base_hz
         # (group, full hierarchical name, VCD type) of every variable, in declaration order; the
-        # group is a board scope, "irq" or "plant" (see write_gtkw)
+        # group is a board scope, a bus scope, "irq" or "plant" (see write_gtkw)
         self.signals: list[tuple[str, str, str]] = []
         self._file = open(path, "w")  # noqa: SIM115 (open for the trace's lifetime; close() closes it)
         self.w = VCDWriter(self._file, timescale="1 ps", date="", comment=f"mcusim {sim.board_name}")
         board = sim.board_name
         now = self._ps(sim.kernel.now)
         self._closed = False
+        # reorder buffer (see the module doc): (tick, seq, var, value); nothing older than _mark may
+        # be queued (it is written or may be); lag = 0 writes straight through
+        self.lag = 0
+        self.late_edges = 0         # changes queued older than _mark, moved to _mark (see tracebus)
+        self._heap: list = []
+        self._seq = itertools.count()
+        self._mark = self._start = sim.kernel.now
+        self.buses: list = []       # the bus waveform tracers (mcusim.tracebus)
         # one scope per board (a system's boards under <system>.<member>)
         system = len(sim.members) > 1 or board not in sim.members
         for mname, member in sim.members.items():
             self._member_vars(f"{board}.{mname}" if system else board, member)
+        # I2C buses, each once (a system's boards share them), in a scope of their own
+        from .i2c import I2cBus
+        from .tracebus import I2cWaveform
+        seen = set()
+        for member in sim.members.values():
+            for p in member["mcu"].periph.values():
+                bus = getattr(p, "bus", None)
+                if isinstance(bus, I2cBus) and id(bus) not in seen:
+                    seen.add(id(bus))
+                    self.buses.append(I2cWaveform(self, bus, f"{board}.{bus.name}", self.base_hz))
         if system:   # board pins wired to system parts ("rcm.GPIO3_3"), and the system's own nets
             for dotted in sim.profile.get("pins", {}):
                 mname, _, pin_name = dotted.partition(".")
@@ -74,7 +112,48 @@ class VcdTrace:
 
     def _wire(self, scope: str, name: str, net, group: str | None = None) -> None:
         var = self._var(scope if group is None else group, scope, name, "wire", size=1, init=net.level)
-        net.listen(lambda n, var=var: self.w.change(var, self._ps(self.sim.kernel.now), n.level))
+        net.listen(lambda n, var=var: self._now_change(var, n.level))
+
+    # --- reorder buffer ---------------------------------------------------------------------------
+    def add_wire(self, scope: str, name: str, init: int = 0):
+        """A 1-bit wire driven through :meth:`change` (grouped with ``scope``)."""
+        return self._var(scope, scope, name, "wire", size=1, init=init)
+
+    def request_lag(self, ticks: int) -> None:
+        """Hold changes ``ticks`` base ticks before writing them (the lag only grows)."""
+        if ticks > self.lag:
+            if not self.lag:    # changes were written straight through up to now
+                self._mark = max(self._mark, self.sim.kernel.now)
+            self.lag = int(ticks)
+
+    def change(self, var, tick: int, value) -> None:
+        """``var`` takes ``value`` at base tick ``tick``, which may lie up to ``lag`` in the past
+        (or in the future). Older ticks are moved to the oldest one still open (``late_edges``)."""
+        if self._closed:
+            return
+        if tick < self._mark:
+            tick = self._mark
+            self.late_edges += 1
+        heapq.heappush(self._heap, (tick, next(self._seq), var, value))
+        self._drain(self.sim.kernel.now - self.lag)
+
+    def _now_change(self, var, value) -> None:
+        now = self.sim.kernel.now
+        if self.lag:
+            heapq.heappush(self._heap, (now, next(self._seq), var, value))
+            self._drain(now - self.lag)
+        else:
+            self.w.change(var, self._ps(now), value)
+
+    def _drain(self, limit: int) -> None:
+        """Write every queued change at or before ``limit``; nothing older may be queued after."""
+        if limit <= self._mark:
+            return
+        self._mark = limit
+        heap = self._heap
+        while heap and heap[0][0] <= limit:
+            tick, _, var, value = heapq.heappop(heap)
+            self.w.change(var, self._ps(tick), value)
 
     def _member_vars(self, scope: str, member: dict) -> None:
         mcu, profile = member["mcu"], member["profile"]
@@ -95,9 +174,18 @@ class VcdTrace:
         def on_line(n, level):
             var = irq_vars.get(n)
             if var is not None:
-                self.w.change(var, self._ps(self.sim.kernel.now), int(level))
+                self._now_change(var, int(level))
         if irq_vars and hasattr(mcu.nvic, "line_listeners"):
             mcu.nvic.line_listeners.append(on_line)
+        # the TXD line of each LPC43xx USART, drawn bit by bit (mcusim.tracebus)
+        try:
+            from periph.lpc43xx.uart import Usart
+        except ImportError:     # pragma: no cover (the periph package ships with mcusim)
+            return
+        from .tracebus import UartWaveform
+        for p in mcu.periph.values():
+            if isinstance(p, Usart):
+                self.buses.append(UartWaveform(self, p, scope, self.base_hz))
 
     def _ps(self, ticks: int) -> int:
         return (ticks * 2 * 10**12 + self.base_hz) // (2 * self.base_hz)
@@ -105,17 +193,26 @@ class VcdTrace:
     def _sample(self):
         if self._closed:
             return
-        t = self._ps(self.sim.kernel.now)
         for var, obj, attr in self._reals:
-            self.w.change(var, t, float(getattr(obj, attr)))
+            self._now_change(var, float(getattr(obj, attr)))
         self.sim.kernel.after(self.period, self._sample, prio=PRIO_OBSERVE)
 
     def flush(self, now: int) -> None:
-        self.w.flush(self._ps(now))
+        """Write what can no longer change (older than ``now - lag``) and stamp the VCD there."""
+        if not self.lag:
+            self.w.flush(self._ps(now))
+            return
+        self._drain(now - self.lag)
+        if self._mark > self._start:    # (not before: changes at the start still go in $dumpvars)
+            self.w.flush(self._ps(self._mark))
 
     def close(self, now: int) -> None:
+        """Write every change up to ``now`` (later ones, drawn ahead by a bus, are dropped)."""
         if not self._closed:
             self._closed = True
+            if self.lag:
+                self._drain(now)
+                self._heap.clear()
             self.w.close(self._ps(now))
             self._file.close()
 
@@ -131,8 +228,9 @@ def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
     """Write a GTKWave save file (``.gtkw``) for ``vcd_trace``: by default next to the VCD, with
     the same name and the suffix ``.gtkw``. Returns the path written.
 
-    Groups: one per board scope with its pins (``nucleo-f746``; in a system ``elementall.mcm1``
-    ...), ``interrupts`` with the interrupt lines of every board, ``plant`` with the plant's
+    Groups: one per board scope with its pins and USART TXD lines (``nucleo-f746``; in a system
+    ``elementall.mcm1`` ...), one per I2C bus with its SCL and SDA (``ciaa-edu.i2c0``), then
+    ``interrupts`` with the interrupt lines of every board, ``plant`` with the plant's
     wires (protection flags, the enable line) and reals (motor angle and current, drawn as
     analog steps). Signals are named by their full hierarchical name (``nucleo-f746.irq.TIM3``,
     ``nucleo-f746.plant.motor1.angle_rad``). The dump file is named by its absolute path.
@@ -150,7 +248,7 @@ def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
     order = [g for g in groups if g not in ("irq", "plant")] + [g for g in ("irq", "plant") if g in groups]
     with open(path, "w") as f:
         gtkw = GTKWSave(f)
-        gtkw.comment(f"mcusim {vcd_trace.sim.board_name}: signals grouped by board, interrupts, plant")
+        gtkw.comment(f"mcusim {vcd_trace.sim.board_name}: signals grouped by board, bus, interrupts, plant")
         gtkw.dumpfile(vcd_path)
         gtkw.savefile(os.path.abspath(path))
         gtkw.timestart(0)

@@ -74,6 +74,7 @@ DEFAULTS = {
     "r_top": 33_000.0, "r_bottom": 6_800.0, "vref": 3.3, "battery_channel": 1,
     "low_v": 11.9, "critical_v": 11.5, "hysteresis_v": 0.2,
     "cmd_rate_hz": 20,
+    "cycles_boot": 204_000,             # 1 ms from reset to rover_control's first line [I]
     "cycles_control": 6000, "cycles_battery": 1500, "cycles_status": 300, "cycles_systick": 120,
 }
 LAYOUT_GEOMETRY = {"differential": ("wheel_radius", "track_width"),
@@ -257,6 +258,7 @@ class RoverControl:
         return [round(w * k) for w in wheels]
 
     async def motor_control(self):
+        await self.cpu.cycles(self.p["cycles_boot"])     # reset handler, clocks, nx_start until the app
         self.board_init()
         await self.cpu.cycles(2000)
         await self.rtos.delay(self._ms(self.p["boot_delay_ms"]))
