@@ -44,8 +44,8 @@ def test_scenario_passing_exits_0_and_failing_exits_1_with_the_results(tmp_path,
 @pytest.mark.parametrize("text, where", [
     ('[scenario]\nduration = "30ms"\n[[at]]\ntime = "2ms"\nfoo = 1\n', "s.toml:5"),          # unknown key
     ('[scenario]\nduration = "30qs"\n', "s.toml:2"),                                           # bad unit
-    ('[scenario]\nduration = "30ms"\n[[at]]\ntime = "5ms"\npublish = { "/motor1/set_pos" = 1 }\n'
-     '[[at]]\ntime = "2ms"\npublish = { "/motor1/set_pos" = 1 }\n', "s.toml:7"),               # out of order
+    (('[scenario]\nduration = "30ms"\n[[at]]\ntime = "5ms"\npublish = { "/motor1/set_pos" = 1 }\n'
+     '[[at]]\ntime = "2ms"\npublish = { "/motor1/set_pos" = 1 }\n'), "s.toml:7"),               # out of order
     ('[scenario\nduration = "30ms"\n', "s.toml"),                                              # malformed
 ])
 def test_a_scenario_mistake_is_one_line_naming_file_and_line_with_exit_2(tmp_path, capsys, text, where):
