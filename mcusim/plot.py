@@ -73,20 +73,17 @@ def plot_run(samples, path=None, title: str | None = None, dpi: int = 100):
     for r, m in enumerate(motors):
         # --- left: position or velocity with its set point
         ax = fig.add_subplot(grid[r, 0])
-        if f"{m}.setpoint_rpm" in cols:
-            line(ax, f"{m}.setpoint_rpm", f"{m} set point", linestyle="--", color="k", drawstyle="steps-post")
-            line(ax, f"{m}.velocity_rpm", f"{m} velocity (firmware)", color="tab:orange",
-                 drawstyle="steps-post")
-            line(ax, f"{m}.speed_rpm", f"{m} speed (plant)", color="tab:blue")
-            ax.set_ylabel("speed (rpm)")
-            ax.set_title(f"{m}: velocity")
+        if f"{m}.setpoint_rpm" in cols:     # a velocity loop (pro-mini) or a position loop
+            sp, fw, plant, unit, what, label = "setpoint_rpm", "velocity_rpm", "speed_rpm", "speed (rpm)", \
+                "velocity", "speed"
         else:
-            line(ax, f"{m}.setpoint_rad", f"{m} set point", linestyle="--", color="k", drawstyle="steps-post")
-            line(ax, f"{m}.fw_position_rad", f"{m} position (firmware)", color="tab:orange",
-                 drawstyle="steps-post")
-            line(ax, f"{m}.angle_rad", f"{m} angle (plant)", color="tab:blue")
-            ax.set_ylabel("angle (rad)")
-            ax.set_title(f"{m}: position")
+            sp, fw, plant, unit, what, label = "setpoint_rad", "fw_position_rad", "angle_rad", "angle (rad)", \
+                "position", "angle"
+        line(ax, f"{m}.{sp}", f"{m} set point", linestyle="--", color="k", drawstyle="steps-post")
+        line(ax, f"{m}.{fw}", f"{m} {what} (firmware)", color="tab:orange", drawstyle="steps-post")
+        line(ax, f"{m}.{plant}", f"{m} {label} (plant)", color="tab:blue")
+        ax.set_ylabel(unit)
+        ax.set_title(f"{m}: {what}")
         ax.set_xlabel("time (s)")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")

@@ -77,17 +77,21 @@ class Torque(Action):
         return fn
 
 
+def _positive_duration(sc, out: dict, i: int, name: str, key: str, default: str) -> dict:
+    """Give ``out[key]`` its default duration and check that it is positive."""
+    out.setdefault(key, parse_duration(default))
+    if out[key] <= 0:
+        raise sc._err(sc._line("at", i, name, key), f"[[at]] #{i + 1}: {name}.{key} must be positive")
+    return out
+
+
 class Turn(Action):
     """``turn = { motor, angle, over }``: a hand turns the output shaft."""
 
     fields: ClassVar[dict] = {"motor": ("str", True), "angle": ("number", True), "over": ("duration", False)}
 
     def parse(self, sc, i, name, spec):
-        out = super().parse(sc, i, name, spec)
-        out.setdefault("over", parse_duration("100ms"))
-        if out["over"] <= 0:
-            raise sc._err(sc._line("at", i, name, "over"), f"[[at]] #{i + 1}: turn.over must be positive")
-        return out
+        return _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "over", "100ms")
 
     def prepare(self, sc, sim, spec, line, where):
         """A hand turns the output shaft to ``angle`` over ``over``, at constant speed: every
@@ -127,11 +131,7 @@ class Follow(Action):
     fields: ClassVar[dict] = {"from": ("str", True), "to": ("str", True), "period": ("duration", False)}
 
     def parse(self, sc, i, name, spec):
-        out = super().parse(sc, i, name, spec)
-        out.setdefault("period", parse_duration("10ms"))
-        if out["period"] <= 0:
-            raise sc._err(sc._line("at", i, name, "period"), f"[[at]] #{i + 1}: follow.period must be positive")
-        return out
+        return _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "period", "10ms")
 
     def prepare(self, sc, sim, spec, line, where):
         src_fw, src = sc._firmware_for(sim, spec["from"], line, where)
