@@ -69,6 +69,8 @@ def _run_arguments(r) -> None:
                    help="topic (/motor1/set_pos=1.57) or parameter (motor1.J=6e-6, firmware.variant=thesis)")
     r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    r.add_argument("--strict", action="store_true",
+                   help="specification limits are errors, not warnings (an ADC clock above 4.5 MHz)")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -128,6 +130,8 @@ def _print_summary(s: dict) -> None:
     if "battery_v" in s:
         print(f"battery    {s['battery_v']:.3f} V (lowest {s.get('battery_min_v', s['battery_v']):.3f} V, "
               f"state of charge {100 * s.get('battery_soc', 1):.2f} %)")
+    for w in s.get("warnings", ()):
+        print(f"warning: {w}")
     fw = s.get("firmware")
     if fw:
         print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))
@@ -146,6 +150,9 @@ def _build(args, scenario):
         try:
             if scenario is not None:
                 sim = scenario.build(args.board, dict(args.sets), not args.no_firmware)
+                for p in sim.peripherals() if args.strict else ():
+                    if hasattr(p, "strict"):
+                        p.strict = True
                 try:
                     scenario.apply(sim)
                 except McusimError:
@@ -154,7 +161,7 @@ def _build(args, scenario):
             else:
                 sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
                 sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
-                sim = load(args.board, firmware=not args.no_firmware, overrides=sets)
+                sim = load(args.board, firmware=not args.no_firmware, overrides=sets, strict=args.strict)
         except BaseException:
             if startup is not None:
                 release(startup)
@@ -253,8 +260,14 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"mcusim: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    import warnings
+    warnings.showwarning = _one_line_warning
     try:
         if args.cmd == "boards":
             from .board import board_names, read_profile

@@ -11,7 +11,7 @@ from .system import build_system, is_system
 
 
 class Simulation:
-    def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None):
+    def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False):
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
         if is_system(profile):
@@ -30,6 +30,10 @@ class Simulation:
         self.wall_s = 0.0
         self._traces = []
         self._closers = []
+        if strict:      # specification limits become errors (the LPC4337 ADC's 4.5 MHz clock, ...)
+            for p in self.peripherals():
+                if hasattr(p, "strict"):
+                    p.strict = True
         try:
             for member in self.members.values():   # a system's per-board inputs (mcm1.velocity=10)
                 for name, value in member["topics"]:
@@ -123,6 +127,11 @@ class Simulation:
     def motors(self) -> dict:
         return {n: p for n, p in self.parts.items() if type(p).__name__ == "DcMotor"}
 
+    def peripherals(self):
+        """Every peripheral model of every board."""
+        for member in self.members.values():
+            yield from member["mcu"].periph.values()
+
     # --- traces -------------------------------------------------------------------------------------
     def trace_vcd(self, path, sample="50us"):
         from .trace import VcdTrace
@@ -185,6 +194,9 @@ class Simulation:
             for key in getattr(self.firmware, "SUMMARY_TOP", ()):   # rover: odometry at top level
                 if key in out["firmware"]:
                     out[key] = out["firmware"].pop(key)
+        warned = [w for p in self.peripherals() for w in getattr(p, "warnings", ())]
+        if warned:                 # specification limits the firmware exceeded (not errors unless strict)
+            out["warnings"] = warned
         for part in self.parts.values():                             # rover: pose, battery_v
             if hasattr(part, "summary_entries"):
                 out.update(part.summary_entries())

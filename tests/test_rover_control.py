@@ -157,3 +157,16 @@ def test_a_misspelled_part_terminal_is_refused_not_left_unwired(tmp_path):
     bad.write_text(text.replace('"estop.SENSE"', '"estop.SENS"'))
     with pytest.raises(ConfigError, match=r"part estop \(estop\) has no terminal SENS; terminals: ENABLE_IN"):
         mcusim.load(str(bad))
+
+
+def test_adc_clock_above_4_5_mhz_is_a_summary_warning_and_an_error_when_strict():
+    from mcusim.errors import McusimError
+    cr = 1 << 21 | 1 << 1 | 1 << 24          # PDN, SEL = CH1, START now; CLKDIV = 0: 204 MHz ADC clock
+    sim = mcusim.load("ciaa-edu", firmware=False)
+    with pytest.warns(UserWarning, match="4.5 MHz"):
+        sim.mcu.write32(0x400E3000, cr)
+    sim.run(seconds="1us")
+    assert any("4.5 MHz" in w for w in sim.summary()["warnings"])
+    strict = mcusim.load("ciaa-edu", firmware=False, strict=True)
+    with pytest.raises(McusimError, match="4.5 MHz"):
+        strict.mcu.write32(0x400E3000, cr)
