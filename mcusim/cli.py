@@ -23,8 +23,9 @@ EXAMPLES_RUN = """examples:
   mcusim run nucleo-f746 --scenario scenarios/step_response.toml --plot step.png --csv step.csv
   mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
 
-exit status: 0 the run completed; 1 the firmware reported a fault (or a simulation error);
-2 a usage error (bad board, key, value or unit)
+exit status: 0 the run completed; 1 the firmware reported a fault, a scenario expectation
+failed, or the simulation hit an error; 2 a usage error (bad board, key, value, unit, scenario
+file or output path)
 """
 EXAMPLES_TRACE = """examples:
   mcusim trace nucleo-f746 --duration 1ms --filter TIM1
@@ -179,10 +180,18 @@ def _build(args, scenario):
 def cmd_run(args) -> int:
     from .scenario import load_scenario
     scenario = load_scenario(args.scenario) if args.scenario else None
-    duration = args.duration or (scenario.duration if scenario is not None else parse_duration("2s"))
+    if scenario is not None and args.duration is not None:
+        scenario.duration = args.duration         # end-of-run checks and reports follow the run
+    duration = args.duration if args.duration is not None else (
+        scenario.duration if scenario is not None else parse_duration("2s"))
+    _check_outputs(args)
     sim = _build(args, scenario)
-    vcd = sim.trace_vcd(args.vcd, sample=args.vcd_sample) if args.vcd else None
-    csv = sim.trace_csv(args.csv, sample=args.sample, keep=bool(args.plot)) if (args.csv or args.plot) else None
+    try:
+        vcd = sim.trace_vcd(args.vcd, sample=args.vcd_sample) if args.vcd else None
+        csv = sim.trace_csv(args.csv, sample=args.sample, keep=bool(args.plot)) if (args.csv or args.plot) else None
+    except BaseException:
+        sim.close()
+        raise
     try:
         run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
     finally:
@@ -218,6 +227,24 @@ def cmd_run(args) -> int:
     return 1 if failed else 0
 
 
+def _check_outputs(args) -> None:
+    """Output files whose folder does not exist, or a plot format matplotlib cannot write, are
+    usage errors found before the run, not after it."""
+    import os
+    for opt in ("vcd", "csv", "plot", "summary", "register_log"):
+        path = getattr(args, opt, None)
+        if path and path != "-":
+            folder = os.path.dirname(os.path.abspath(path))
+            if not os.path.isdir(folder):
+                raise ConfigError(f"--{opt.replace('_', '-')} {path}: no folder {folder}")
+    if getattr(args, "plot", None):
+        ext = os.path.splitext(args.plot)[1].lower()
+        if ext not in (".png", ".pdf", ".svg", ".jpg", ".jpeg"):
+            raise ConfigError(f"--plot {args.plot}: the file name must end in .png, .pdf, .svg or .jpg")
+    if getattr(args, "sample", None) is not None and args.sample <= 0:
+        raise ConfigError(f"--sample {args.sample}: must be positive")
+
+
 def cmd_trace(args) -> int:
     args.register_log = "-"
     for name in ("vcd", "csv", "plot", "summary"):
@@ -248,6 +275,8 @@ def bench(board: str, duration, repeat: int = 3) -> dict:
 
 
 def cmd_bench(args) -> int:
+    if args.repeat < 1:
+        raise ConfigError(f"--repeat {args.repeat}: must be at least 1")
     r = bench(args.board, args.duration, args.repeat)
     print(f"{r['board']} bench ({r['scenario']}): {r['simulated_s']:.3f} s simulated, "
           f"median wall {r['wall_s_median']:.2f} s (min {r['wall_s_min']:.2f}, max {r['wall_s_max']:.2f}) "
@@ -284,12 +313,15 @@ def main(argv=None) -> int:
     except (ConfigError, TimeError) as exc:
         print(f"mcusim: error: {exc}", file=sys.stderr)
         return 2
-    except McusimError as exc:
-        print(f"mcusim: error: {exc}", file=sys.stderr)
-        return 1
     except BrokenPipeError:              # `mcusim trace ... | head`: the reader has gone
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except OSError as exc:                # an output file that cannot be written
+        print(f"mcusim: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except McusimError as exc:
+        print(f"mcusim: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("mcusim: interrupted", file=sys.stderr)

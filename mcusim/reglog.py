@@ -40,6 +40,7 @@ import fnmatch
 import json
 import os
 
+from .errors import ConfigError
 from .registers import Peripheral
 
 
@@ -131,6 +132,21 @@ def _matcher(filter):
     return match, could
 
 
+def _check_filter(sim, filter) -> None:
+    """Every filter pattern must be able to match a peripheral (a typo would log nothing)."""
+    if filter is None:
+        return
+    pats = filter.replace(";", ",").split(",") if isinstance(filter, str) else list(filter)
+    names = [(m, p.name) for m, member in sim.members.items() for p in _bus_peripherals(member["mcu"])]
+    for pat in (str(x).strip() for x in pats):
+        could = _matcher([pat])[1] if pat else None
+        if could is not None and not any(could(m, p) for m, p in names):
+            known = sorted({p for _, p in names})
+            raise ConfigError(f"register log filter {pat!r} matches no peripheral; peripherals: "
+                              f"{', '.join(known)}" + (f"; boards: {', '.join(sim.members)}"
+                                                       if len(sim.members) > 1 else ""))
+
+
 def _addresses(bus) -> tuple[dict, dict]:
     """({id(periph): base} of peripherals mapped as a block, {(id(periph), offset): address} of
     registers mapped one by one (AVR data space))."""
@@ -169,6 +185,7 @@ class RegisterLog:
         self.base_hz = sim.timebase.base_hz
         self.lines = 0
         self._match, self._could = _matcher(filter)
+        _check_filter(sim, filter)
         if hasattr(path_or_file, "write"):
             self._file, self._own, self.path = path_or_file, False, None
         else:

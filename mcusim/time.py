@@ -24,12 +24,20 @@ def _number(text: str) -> Fraction:
     return Fraction(text)  # Fraction parses decimal and exponent notation exactly
 
 
+def _plain_number(value, what: str) -> Fraction:
+    """An int/float/Fraction quantity: finite and not negative, else TimeError."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise TimeError(f"bad {what} {value!r}: must be a finite number")
+    out = Fraction(value) if not isinstance(value, float) else Fraction(str(value))
+    if out < 0:
+        raise TimeError(f"bad {what} {value!r}: must not be negative")
+    return out
+
+
 def parse_duration(value: str | float | Fraction) -> Fraction:
     """``"2s"``, ``"500ms"``, ``"10us"``, ``"1.5e-3"`` (seconds) -> exact seconds as a Fraction."""
-    if isinstance(value, (int, Fraction)):
-        return Fraction(value)
-    if isinstance(value, float):
-        return Fraction(str(value))
+    if isinstance(value, (int, float, Fraction)):
+        return _plain_number(value, "duration")
     m = re.fullmatch(_NUM + r"(min|ms|us|µs|ns|ps|s)?\s*", str(value))
     if not m:
         raise TimeError(f"bad duration {value!r}: expected a number with a unit such as 2s, 500ms, 10us")
@@ -41,10 +49,11 @@ def parse_duration(value: str | float | Fraction) -> Fraction:
 
 def parse_frequency(value: str | float | Fraction) -> Fraction:
     """``"50kHz"``, ``"216MHz"``, ``"16e6"`` (hertz) -> exact hertz as a Fraction."""
-    if isinstance(value, (int, Fraction)):
-        return Fraction(value)
-    if isinstance(value, float):
-        return Fraction(str(value))
+    if isinstance(value, (int, float, Fraction)):
+        hz = _plain_number(value, "frequency")
+        if hz <= 0:
+            raise TimeError(f"bad frequency {value!r}: must be positive")
+        return hz
     m = re.fullmatch(_NUM + r"([kKmMgG]?[hH][zZ])?\s*", str(value))
     if not m:
         raise TimeError(f"bad frequency {value!r}: expected a number with a unit such as 50kHz or 216MHz")

@@ -164,6 +164,15 @@ class VcdTrace:
         names = {}
         for spec in profile.get("peripheral", []):
             irqs = spec.get("irqs", {"irq": spec["irq"]} if "irq" in spec else {})
+            if not irqs:        # AVR models carry their vectors: {"compa": 11, ...}, (1, 2) or one
+                p = mcu.periph.get(spec["name"])
+                vec = getattr(p, "vectors", None)
+                if isinstance(vec, dict):
+                    irqs = dict(vec)
+                elif isinstance(vec, (tuple, list)):
+                    irqs = {f"int{k}": n for k, n in enumerate(vec)}
+                elif isinstance(getattr(p, "vector", None), int):
+                    irqs = {"irq": p.vector}
             shared = len(set(irqs.values())) == 1
             for kind, n in irqs.items():
                 suffix = {"update": "UP"}.get(kind, kind.upper())  # CMSIS: TIM1_UP_TIM10_IRQn

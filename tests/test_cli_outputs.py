@@ -108,3 +108,59 @@ def test_trace_prints_the_register_log_on_stdout_and_the_summary_on_stderr(capsy
     cen = [r for r in recs if "CEN" in r.get("changed", {})]
     assert cen and cen[0]["changed"]["CEN"] == [0, 1]
     assert "simulated" in captured.err
+
+
+def test_duration_on_the_command_line_moves_the_scenarios_end_of_run_checks(tmp_path, capsys):
+    p = tmp_path / "end.toml"
+    p.write_text('[scenario]\nduration = "30ms"\n[[expect]]\nname = "end"\npart = "motor1"\n'
+                 'attr = "output_angle"\nmax = 1.0\n')
+    assert main(["run", "nucleo-f746", "--scenario", str(p), "--duration", "10ms", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "simulated 0.010000 s" in out and "PASS  end" in out and "at 0.01 s" in out
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--set", "firmware.kp=abc"], "firmware.kp = 'abc': expected a number"),
+    (["--set", "/motor1/enable=3.5"], "/motor1/enable = 3.5: expected true or false"),
+    (["--set", "/motor1/set_pos=abc"], "/motor1/set_pos = 'abc': expected a number"),
+    (["--csv", "/no/such/folder/x.csv"], "no folder /no/such/folder"),
+    (["--summary", "/no/such/folder/s.json"], "no folder /no/such/folder"),
+    (["--plot", "x.gif"], "must end in .png"),
+    (["--sample", "0s", "--csv", "x.csv"], "--sample 0: must be positive"),
+    (["--register-log", "r.jsonl", "--register-log-filter", "TIM33"], "'TIM33' matches no peripheral"),
+])
+def test_bad_values_and_outputs_are_usage_errors_found_before_the_run(tmp_path, capsys, monkeypatch, args, msg):
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "nucleo-f746", "--duration", "1ms", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and msg in err, err
+
+
+def test_scenario_values_are_checked_against_the_topic_type_with_file_and_line(tmp_path, capsys):
+    for body, msg in (('[[at]]\ntime = "1ms"\npublish = { "/motor1/set_pos" = "abc" }\n', "s.toml:5: "),
+                      ('[[at]]\ntime = nan\npublish = { "/motor1/set_pos" = 1.0 }\n', "s.toml:4: ")):
+        p = tmp_path / "s.toml"
+        p.write_text('[scenario]\nduration = "5ms"\n' + body)
+        assert main(["run", "nucleo-f746", "--scenario", str(p)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and msg in err, err
+
+
+def test_bench_repeat_must_be_positive(capsys):
+    assert main(["bench", "nucleo-f746", "--repeat", "0"]) == 2
+    assert "--repeat 0" in capsys.readouterr().err
+
+
+def test_avr_interrupt_lines_are_in_the_vcd_and_the_module_command_starts_after_1ms(tmp_path, capsys):
+    import mcusim
+    vcd = tmp_path / "pm.vcd"
+    sim = mcusim.load("pro-mini", overrides={"velocity": 10})
+    sim.trace_vcd(str(vcd))
+    master = sim.firmware._host()
+    sim.run(seconds="3ms")
+    sim.close()
+    text = vcd.read_text()
+    for name in ("EXINT_INT0", "TIMER1_OVF", "TIMER0_OVF", "TWI", "ADC"):
+        assert f" {name} $end" in text
+    (tr,) = master.transfers
+    assert tr.t_start == sim.timebase.ticks("1ms") and tr.ok

@@ -32,6 +32,7 @@ from firmware.stm32hal import tim as hal_tim
 from firmware.stm32hal.rcc import SystemCoreClock
 from firmware.stm32hal.regs import Stm32f7
 from mcusim.errors import ConfigError
+from mcusim.params import coerce, firmware_params
 
 TIM3_IRQn, TIM4_IRQn = 29, 30
 configTICK_RATE_HZ = 1000
@@ -67,11 +68,7 @@ class Topic:
 
 class ControlMotorFirmware:
     def __init__(self, mcu, **params):
-        unknown = set(params) - set(DEFAULTS)
-        if unknown:
-            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
-                              f"(known: {', '.join(sorted(DEFAULTS))})")
-        self.p = {**DEFAULTS, **params}
+        self.p = firmware_params(DEFAULTS, params)
         if self.p["variant"] not in VARIANTS:
             raise ConfigError(f"firmware.variant must be one of {VARIANTS}, not {self.p['variant']!r}")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
@@ -87,12 +84,16 @@ class ControlMotorFirmware:
         self.main()
 
     # --- host side of the micro-ROS topics --------------------------------------------------
-    def publish(self, name: str, value) -> None:
+    def check_input(self, name: str, value):
+        """The message ``value`` for topic ``name`` as the topic's type, or ConfigError."""
         topic = self.topics.get(name)
         if topic is None or topic.direction != "sub":
             subs = [t for t in self.topics if self.topics[t].direction == "sub"]
             raise ConfigError(f"no subscribed topic {name!r}; the firmware subscribes to {', '.join(subs)}")
-        self._inbox.append((name, topic.type(value)))
+        return coerce(value, topic.type, name)
+
+    def publish(self, name: str, value) -> None:
+        self._inbox.append((name, self.check_input(name, value)))
 
     def topic(self, name: str):
         if name not in self.topics:

@@ -28,6 +28,8 @@ from firmware.arduino.timerone import TimerOne
 from firmware.arduino.wire import TwoWire
 from firmware.openrover_mcm import protocol as P
 from mcusim.errors import ConfigError
+from mcusim.kernel import PRIO_INPUT
+from mcusim.params import coerce, firmware_params
 
 DEFAULTS = {
     "i2c_address": P.DEFAULT_ADDRESS,
@@ -65,11 +67,7 @@ def counts_to_rpm(counts_s: float) -> float:
 
 class OpenRoverMcm:
     def __init__(self, mcu, adc=None, **params):
-        unknown = set(params) - set(DEFAULTS)
-        if unknown:
-            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
-                              f"(known: {', '.join(sorted(DEFAULTS))})")
-        self.p = {**DEFAULTS, **params}
+        self.p = firmware_params(DEFAULTS, params)
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
         adc = adc if adc is not None else mcu.periph.get("ADC")
         self.core = ArduinoCore(mcu, adc=adc)
@@ -180,18 +178,29 @@ class OpenRoverMcm:
             self._host_master = I2cMaster(self.mcu.kernel, twi.bus, scl_hz=100_000)
         return self._host_master
 
-    def publish(self, name: str, value) -> None:
-        addr = self.p["i2c_address"]
-        if name == "velocity":
-            self._host().write(addr, bytes([P.BY_NAME["SETPOINT"].addr]) + P.encode("SETPOINT", rpm_to_counts(float(value))))
-        elif name == "pid_enable":
-            ctl = P.CTL_PID_ENABLE if value in (True, 1, "true", "1") else 0
-            self._host().write(addr, bytes([P.BY_NAME["CONTROL"].addr, ctl]))
-        elif name == "clear_faults":
-            self._host().write(addr, bytes([P.BY_NAME["CONTROL"].addr, P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS]))
-        else:
+    def check_input(self, name: str, value):
+        """``value`` for host input ``name`` converted to its type, or ConfigError."""
+        kinds = {"velocity": float, "pid_enable": bool, "clear_faults": bool}
+        if name not in kinds:
             raise ConfigError(f"no input {name!r}; the module takes: " +
                               "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
+        return coerce(value, kinds[name], name)
+
+    def publish(self, name: str, value) -> None:
+        """A host input as an I2C write on the module's bus, from 1 ms after reset on (a host
+        starts talking once the module has booted; it also keeps the START off tick 0, where a
+        trace could not show it as an edge)."""
+        value = self.check_input(name, value)
+        addr, reg = self.p["i2c_address"], P.BY_NAME
+        if name == "velocity":
+            data = bytes([reg["SETPOINT"].addr]) + P.encode("SETPOINT", rpm_to_counts(value))
+        elif name == "pid_enable":
+            data = bytes([reg["CONTROL"].addr, P.CTL_PID_ENABLE if value else 0])
+        else:
+            data = bytes([reg["CONTROL"].addr, P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS])
+        kernel = self.mcu.kernel
+        start = max(kernel.now, kernel.timebase.ticks("1ms"))
+        kernel.at(start, lambda: self._host().write(addr, data), prio=PRIO_INPUT)
 
     def topic(self, name: str):
         values = {"velocity": counts_to_rpm(self.velocity), "current": self.current_ma / 1000,

@@ -49,6 +49,7 @@ from firmware.openrover_rcm.kinematics import make_layout, saturate
 from firmware.openrover_rcm.odometry import Odometry, Unwrap16
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
+from mcusim.params import coerce, firmware_params
 
 DEFAULTS = {
     "layout": "skid_steer",
@@ -99,11 +100,7 @@ class RoverControl:
     SUMMARY_TOP = ("odometry",)
 
     def __init__(self, mcu, **params):
-        unknown = set(params) - set(DEFAULTS)
-        if unknown:
-            raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
-                              f"(known: {', '.join(sorted(DEFAULTS))})")
-        self.p = p = {**DEFAULTS, **params}
+        self.p = p = firmware_params(DEFAULTS, params)
         kind = str(p["layout"]).replace("-", "_")
         if kind not in LAYOUT_GEOMETRY:
             raise ConfigError(f"firmware.layout = {p['layout']!r}: expected one of {', '.join(LAYOUT_GEOMETRY)}")
@@ -373,22 +370,21 @@ class RoverControl:
         self.cmd_tick = self.rtos.tick_count
 
     # --- host side (not firmware) ------------------------------------------------------------------
-    def publish(self, name: str, value) -> None:
-        key = name.removeprefix("cmd_vel.") if name.startswith("cmd_vel.") else None
-        if key not in ("linear", "angular", "lateral", "stream"):
+    def check_input(self, name: str, value):
+        """``value`` for host input ``name`` converted to its type, or ConfigError."""
+        if name not in HOST_INPUTS:
             raise ConfigError(f"no input {name!r}; the controller takes: " +
                               "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
-        h = self._host
-        if key == "stream":
-            h["stream"] = value in (True, 1, "true", "1")
-        else:
-            try:
-                v = float(value)
-            except (TypeError, ValueError):
-                raise ConfigError(f"{name}={value!r}: expected a number") from None
-            if key == "lateral" and v and not self.layout.holonomic:
-                raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
-            h[key] = v
+        v = coerce(value, bool if name == "cmd_vel.stream" else float, name)
+        if name == "cmd_vel.lateral" and v and not self.layout.holonomic:
+            raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
+        return v
+
+    def publish(self, name: str, value) -> None:
+        v = self.check_input(name, value)
+        key, h = name.removeprefix("cmd_vel."), self._host
+        h[key] = v
+        if key != "stream":
             h["id"] += 1
         if self._stream_ev is not None:
             self._stream_ev.cancel()

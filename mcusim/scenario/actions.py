@@ -53,7 +53,7 @@ class Publish(Action):
         msgs = []
         for topic, value in spec.items():
             fw, name = sc._firmware_for(sim, topic, line, where)
-            sc._check_input(fw, name, line, where)
+            sc._check_input(fw, name, line, where, value)
             msgs.append((fw, name, topic, value))
 
         def fn():

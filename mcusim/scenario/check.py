@@ -127,7 +127,7 @@ class Checker:
             raise self._err(line, f"{where}: {topic!r}: the simulation runs without firmware")
         return sim.firmware, topic
 
-    def _check_input(self, fw, name, line, where):
+    def _check_input(self, fw, name, line, where, value=None):
         topics = getattr(fw, "topics", None)
         if isinstance(topics, dict):
             inputs = [n for n, t in topics.items() if getattr(t, "direction", "sub") == "sub"]
@@ -135,6 +135,11 @@ class Checker:
             inputs = getattr(sys.modules.get(type(fw).__module__), "HOST_INPUTS", None)
         if inputs is not None and name not in inputs:
             raise self._err(line, f"{where}: the firmware takes no input {name!r} (inputs: {', '.join(inputs)})")
+        if value is not None and hasattr(fw, "check_input"):
+            try:
+                fw.check_input(name, value)
+            except McusimError as exc:
+                raise self._err(line, f"{where}: {exc}") from None
 
     def _check_output(self, fw, name, line, where):
         try:
