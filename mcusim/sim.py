@@ -7,7 +7,7 @@ import time as _wall
 
 from .board import build, parse_value, read_profile, split_overrides
 from .errors import ConfigError, McusimError
-from .system import build_system, is_system
+from .system import build_system, close_firmware_tasks, is_system
 
 
 class Simulation:
@@ -156,11 +156,7 @@ class Simulation:
 
     def discard(self) -> None:
         """Drop the firmware's task coroutines (a simulation that will not run on)."""
-        for member in self.members.values():
-            rtos = member["mcu"].rtos
-            if rtos is not None:
-                for task in rtos.tasks:
-                    task.coro.close()
+        close_firmware_tasks(self.members)
 
     def close(self) -> None:
         for tr in self._traces:

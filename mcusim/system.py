@@ -81,6 +81,69 @@ def split_system_overrides(profile: dict, overrides: dict, where: str, inputs=fr
     return members, present, parts, main_fw, topics
 
 
+def close_firmware_tasks(members: dict) -> None:
+    """End the task coroutines of every board's firmware (a simulation that will not run on)."""
+    for ns in members.values():
+        rtos = ns["mcu"].rtos
+        for task in (rtos.tasks if rtos is not None else ()):
+            task.coro.close()
+
+
+def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, kernel, buses, external):
+    """One board of the system: its profile's ``set`` and the user's keys for it; without
+    firmware (absent, or --no-firmware) firmware keys are mistakes."""
+    name = m["name"]
+    sets = {**m.get("set", {}), **user_sets}
+    p_parts, p_fw, p_topics = split_overrides(prof, sets)
+    p_fw.update(main_fw)
+    fw_on = with_firmware and present
+    if not fw_on:
+        topic_keys = {k for k, _ in p_topics}
+        given = [f"{name}.{k}" for k in user_sets if k.startswith("firmware.") or k in topic_keys]
+        given += [f"firmware.{k}" for k in main_fw]
+        if given:
+            why = "is not present" if not present else "runs without firmware (--no-firmware)"
+            raise ConfigError(f"--set {', '.join(given)}: {name} {why}")
+        p_fw, p_topics = {}, []
+    ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external)
+    ns["present"], ns["topics"] = present, p_topics
+    return ns
+
+
+def _build_system_parts(profile, where, part_params, members, link_nets, kernel) -> dict:
+    """The system's own parts, wired to board pins ([pins]) and to their output nets ([links]),
+    and the board analog inputs that follow them ([analog])."""
+    def lookup(dotted):
+        member, _, part = dotted.partition(".")
+        return members.get(member, {}).get("parts", {}).get(part)
+
+    wiring: dict = {}
+    for pin, target in profile.get("pins", {}).items():
+        member, _, pin_name = pin.partition(".")
+        if member not in members:
+            raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
+        part, _, term = target.partition(".")
+        wiring.setdefault(part, {})[term.upper()] = members[member]["mcu"].pin(pin_name)
+    for source, net in link_nets.items():
+        part, _, term = source.partition(".")
+        wiring.setdefault(part, {})[term.upper()] = net
+    sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
+
+    for target, source in profile.get("analog", {}).items():
+        member, _, net_name = target.partition(".")
+        mcu = members.get(member, {}).get("mcu")
+        if mcu is None or net_name not in mcu.analog:
+            raise ConfigError(f"{where}: [analog] {target!r}: no analog input {net_name!r} on {member!r}")
+        part_name, _, term = source.partition(".")
+        src = sys_parts.get(part_name)
+        if term:
+            src = getattr(src, term.lower(), None)
+        if src is None or not hasattr(src, "voltage"):
+            raise ConfigError(f"{where}: [analog] {target} = {source!r}: no such analog output")
+        mcu.analog[net_name].source = src.voltage
+    return sys_parts
+
+
 def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool) -> dict:
     system = profile["system"]
     specs = profile.get("member", [])
@@ -122,74 +185,17 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
             external[member].setdefault(part, {})[term] = net
 
     buses: dict = {}
-    members = {}
+    members: dict = {}
     try:
-        return _build_members(profile, where, specs, main, member_profiles, member_sets, present,
-                              part_params, main_fw, topics, kernel, external, link_nets, buses,
-                              members, with_firmware)
+        for m in specs:
+            name = m["name"]
+            members[name] = _build_member(
+                m, *member_profiles[name], member_sets[name], present[name],
+                main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
+        sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     except Exception:
-        for ns in members.values():      # firmware tasks that will never run: close them quietly
-            rtos = ns["mcu"].rtos
-            for task in (rtos.tasks if rtos is not None else ()):
-                task.coro.close()
+        close_firmware_tasks(members)    # firmware that will never run: end its coroutines quietly
         raise
-
-
-def _build_members(profile, where, specs, main, member_profiles, member_sets, present, part_params,
-                   main_fw, topics, kernel, external, link_nets, buses, members, with_firmware):
-    system = profile["system"]
-    for m in specs:
-        name = m["name"]
-        prof, pwhere = member_profiles[name]
-        sets = dict(m.get("set", {}))
-        sets.update(member_sets[name])
-        p_parts, p_fw, p_topics = split_overrides(prof, sets)
-        if name == main:
-            p_fw.update(main_fw)
-        fw_on = with_firmware and present[name]
-        if not fw_on:      # firmware keys for a board whose firmware does not run are mistakes
-            topic_keys = {k for k, _ in p_topics}
-            given = [f"{name}.{k}" for k in member_sets[name] if k.startswith("firmware.") or k in topic_keys]
-            given += [f"firmware.{k}" for k in main_fw] if name == main else []
-            if given:
-                why = "is not present" if not present[name] else "runs without firmware (--no-firmware)"
-                raise ConfigError(f"--set {', '.join(given)}: {name} {why}")
-        if not fw_on:
-            p_fw, p_topics = {}, []
-        ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external[name])
-        ns["present"] = present[name]
-        ns["topics"] = p_topics
-        members[name] = ns
-
-    def lookup(dotted):
-        member, _, part = dotted.partition(".")
-        return members.get(member, {}).get("parts", {}).get(part)
-
-    # system parts: terminals from [pins] (board pins) and [links] (their own output nets)
-    wiring: dict = {}
-    for pin, target in profile.get("pins", {}).items():
-        member, _, pin_name = pin.partition(".")
-        if member not in members:
-            raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
-        part, _, term = target.partition(".")
-        wiring.setdefault(part, {})[term.upper()] = members[member]["mcu"].pin(pin_name)
-    for source, net in link_nets.items():
-        part, _, term = source.partition(".")
-        wiring.setdefault(part, {})[term.upper()] = net
-    sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
-
-    for target, source in profile.get("analog", {}).items():
-        member, _, net_name = target.partition(".")
-        mcu = members.get(member, {}).get("mcu")
-        if mcu is None or net_name not in mcu.analog:
-            raise ConfigError(f"{where}: [analog] {target!r}: no analog input {net_name!r} on {member!r}")
-        part_name, _, term = source.partition(".")
-        src = sys_parts.get(part_name)
-        if term:
-            src = getattr(src, term.lower(), None)
-        if src is None or not hasattr(src, "voltage"):
-            raise ConfigError(f"{where}: [analog] {target} = {source!r}: no such analog output")
-        mcu.analog[net_name].source = src.voltage
 
     parts = dict(sys_parts)
     for name, ns in members.items():

@@ -22,7 +22,6 @@ import inspect
 import textwrap
 
 from .errors import McusimError
-from .time import parse_duration
 
 __all__ = ["SimTimeout", "describe_condition", "run_for", "wait_for_pin", "wait_until"]
 
@@ -85,7 +84,7 @@ def _lambda_source(fn) -> str | None:
 
 def _ticks(sim, duration) -> int:
     """Seconds or a duration string ("500ms") to base ticks, rounded to the nearest tick."""
-    return round(parse_duration(duration) * sim.timebase.base_hz)
+    return sim.timebase.ticks(duration, rounding=True)
 
 
 def _advance(sim, t_end: int, stop=None) -> None:
