@@ -195,7 +195,8 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
 
 
 def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
-          buses: dict | None = None, kernel: Kernel | None = None, external: dict | None = None):
+          buses: dict | None = None, kernel: Kernel | None = None, external: dict | None = None,
+          engine: str = "reference"):
     """Instantiate kernel, MCU, peripherals, plant and (optionally) firmware. Returns a namespace dict.
 
     A system (:mod:`mcusim.system`) builds several boards on one ``kernel`` (whose time base must
@@ -210,7 +211,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         raise ConfigError(f"{where}: missing table [{exc.args[0]}]") from None
     sysclk = parse_frequency(clocks["sysclk"])
     if kernel is None:
-        kernel = Kernel(TimeBase(board_clocks(profile)))
+        kernel = Kernel(TimeBase(board_clocks(profile)), engine)
     timebase = kernel.timebase
     buses = {} if buses is None else buses
     bus = Bus(f"{board['name']}.bus")

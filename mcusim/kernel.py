@@ -28,8 +28,14 @@ class Event:
 
 
 class Kernel:
-    def __init__(self, timebase):
+    """``Kernel(timebase, engine="reference")``: the event queue. ``engine`` ("fast" or "reference",
+    :mod:`mcusim.engine`) is read by the models through ``kernel.fast``."""
+
+    def __init__(self, timebase, engine: str = "reference"):
+        from .engine import check_engine
         self.timebase = timebase
+        self.engine = check_engine(engine)
+        self.fast = engine == "fast"
         self.now = 0
         self._queue = []
         self._seq = 0

@@ -13,20 +13,97 @@ from fractions import Fraction
 from .errors import McusimError
 
 
-class Net:
-    __slots__ = ("_drivers", "_forced", "_listeners", "level", "name", "pull")
+class _Carrier:
+    """Listeners and steady waveforms, shared by :class:`Net` and :class:`Port`.
+
+    A listener registered with ``listen(fn)`` needs every edge: while a waveform
+    (:class:`mcusim.engine.waveform.Waveform`) is present, the carrier *expands* it into one kernel
+    event per edge for such listeners. ``listen(fn, waves=True)`` registers a listener that handles
+    waveforms itself: it is called on every level change while no waveform is present, and once
+    whenever the waveform starts, changes or ends (read ``.wave``). ``waves`` may also be a callable:
+    the listener handles waveforms itself only while it returns true (its owner calls
+    :meth:`refresh` when that may have changed).
+    """
+
+    __slots__ = ()
+
+    def _init_listeners(self):
+        self._listeners = []    # need every edge
+        self._wlisteners = []   # (fn, predicate or None): handle waveforms themselves
+        self._exp_ev = None     # next edge event of the expander
+
+    def listen(self, fn, waves=False) -> None:
+        if waves is False:
+            self._listeners.append(fn)
+        else:
+            self._wlisteners.append((fn, None if waves is True else waves))
+        self.refresh()
+
+    def _edge_listeners(self):
+        out = list(self._listeners)
+        for fn, pred in self._wlisteners:
+            if pred is not None and not pred():
+                out.append(fn)
+        return out
+
+    def _notify(self, level_changed: bool, wave_changed: bool) -> None:
+        """Call the listeners after a change of the resolved level and/or of the waveform. While a
+        waveform is present, a level change is an expanded edge: only edge listeners hear it."""
+        if level_changed:
+            for fn in self._listeners:
+                fn(self)
+        if self._wlisteners:
+            expanded = self.wave is not None and not wave_changed
+            for fn, pred in self._wlisteners:
+                if pred is None or pred():
+                    if wave_changed or (level_changed and not expanded):
+                        fn(self)
+                elif level_changed:
+                    fn(self)
+
+    # --- the expander: edges as events for the listeners that need them --------------------------
+    def _wave_sources(self):
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        """(Re)start or stop the expander after a change of waveforms or listeners."""
+        if self._exp_ev is not None:
+            self._exp_ev.cancel()
+            self._exp_ev = None
+        waves = self._wave_sources()
+        if not waves:
+            return
+        if self.wave is not None and not self._edge_listeners():
+            return      # everyone reads the descriptor
+        kernel = waves[0].kernel
+        t = min(w.next_edge(kernel.now)[0] for w in waves)
+        from .kernel import PRIO_HW
+        self._exp_ev = kernel.at(t, self._expand, prio=PRIO_HW)
+
+    def _expand(self) -> None:
+        self._exp_ev = None
+        self._resolve()
+        if self._exp_ev is None:
+            self.refresh()
+
+
+class Net(_Carrier):
+    __slots__ = ("_drivers", "_exp_ev", "_forced", "_listeners", "_lvl", "_wlisteners", "name", "pull",
+                 "wave")
 
     def __init__(self, name: str, level: int = 0, pull: int | None = None):
         self.name = name
         self.pull = pull  # level when nothing drives the net (None: keeps its last level)
-        self.level = level if pull is None else pull
-        self._drivers: dict[str, int] = {}
+        self._lvl = level if pull is None else pull
+        self._drivers: dict = {}   # driver -> 0/1, or a Waveform
         self._forced: int | None = None
-        self._listeners = []
+        self.wave = None           # the net's level is this waveform (one driver gives it)
+        self._init_listeners()
 
-    def listen(self, fn) -> None:
-        """``fn(net)`` is called after every level change."""
-        self._listeners.append(fn)
+    @property
+    def level(self) -> int:
+        w = self.wave
+        return self._lvl if w is None else w.level_at(w.kernel.now)
 
     def set(self, driver: str, level: int | None) -> None:
         """Driver ``driver`` drives ``level`` (0/1), or releases the net with ``None``."""
@@ -34,6 +111,11 @@ class Net:
             self._drivers.pop(driver, None)
         else:
             self._drivers[driver] = 1 if level else 0
+        self._resolve()
+
+    def set_wave(self, driver: str, wave) -> None:
+        """Driver ``driver`` drives a steady waveform from now on (until its next set/set_wave)."""
+        self._drivers[driver] = wave
         self._resolve()
 
     def set_pull(self, level: int | None) -> None:
@@ -54,22 +136,45 @@ class Net:
     def forced(self) -> bool:
         return self._forced is not None
 
+    def _wave_sources(self):
+        return [v for v in self._drivers.values() if type(v) is not int]
+
     def _resolve(self) -> None:
+        wave = None
         if self._forced is not None:
             new = self._forced
         elif self._drivers:
-            levels = set(self._drivers.values())
-            if len(levels) > 1:
-                raise McusimError(f"contention on net {self.name}: drivers {sorted(self._drivers)} disagree")
-            new = levels.pop()
+            drivers = self._drivers
+            if len(drivers) == 1:
+                v = next(iter(drivers.values()))
+                if type(v) is int:
+                    new = v
+                else:
+                    wave, new = v, v.level
+            else:
+                levels = {v if type(v) is int else v.level for v in drivers.values()}
+                if len(levels) > 1:
+                    raise McusimError(f"contention on net {self.name}: drivers {sorted(drivers)} disagree")
+                new = levels.pop()
         elif self.pull is not None:
             new = self.pull
         else:
-            new = self.level
-        if new != self.level:
-            self.level = new
-            for fn in self._listeners:
-                fn(self)
+            new = self._lvl
+        old_wave = self.wave
+        changed = new != self._lvl
+        self._lvl = new
+        if wave is None and old_wave is None:
+            if changed:
+                self._notify(True, False)
+            if self._exp_ev is None and len(self._drivers) > 1:
+                self.refresh()      # several drivers, one of them a waveform: expand for contention
+            return
+        self.wave = wave
+        if wave is not old_wave:
+            self.refresh()
+            self._notify(changed, True)
+        elif changed:   # an expanded edge (or a stale level caught up: then no edge listener exists)
+            self._notify(True, False)
 
     def __repr__(self):
         return f"Net({self.name}={self.level})"
@@ -99,27 +204,55 @@ class AnalogNet:
         return self.source(t) if self.source is not None else self._volts
 
 
-class Port:
-    """A peripheral's output towards the pin mux: 0, 1, or ``None`` (not driving).
+class Port(_Carrier):
+    """A peripheral's output towards the pin mux: 0, 1, or ``None`` (not driving), or a steady
+    waveform (:meth:`set_wave`, fast engine).
 
-    Listeners ``fn(port)`` are called whenever the value changes, including to or from ``None``.
+    Listeners ``fn(port)`` are called whenever the value changes, including to or from ``None``
+    (see :class:`_Carrier` for listeners that handle waveforms themselves).
     """
 
-    __slots__ = ("_listeners", "name", "value")
+    __slots__ = ("_exp_ev", "_listeners", "_val", "_wlisteners", "name", "wave")
 
     def __init__(self, name: str):
-        self.name, self.value, self._listeners = name, None, []
+        self.name, self._val, self.wave = name, None, None
+        self._init_listeners()
 
-    def listen(self, fn) -> None:
-        self._listeners.append(fn)
+    @property
+    def value(self):
+        w = self.wave
+        return self._val if w is None else w.level_at(w.kernel.now)
 
     def set(self, value: int | None) -> None:
         if value is not None:
             value = 1 if value else 0
-        if value != self.value:
-            self.value = value
-            for fn in self._listeners:
-                fn(self)
+        if self.wave is not None:
+            self.wave = None
+            self.refresh()
+            changed = value != self._val
+            self._val = value
+            self._notify(changed, True)
+        elif value != self._val:
+            self._val = value
+            self._notify(True, False)
+
+    def set_wave(self, wave) -> None:
+        """From now on the output is ``wave`` (its level now must be the port's value now)."""
+        if wave is self.wave:
+            return
+        self._val = wave.level
+        self.wave = wave
+        self.refresh()
+        self._notify(False, True)
+
+    def _wave_sources(self):
+        return [self.wave] if self.wave is not None else []
+
+    def _resolve(self) -> None:  # an expander edge: the value follows the waveform
+        v = self.wave.level
+        if v != self._val:
+            self._val = v
+            self._notify(True, False)
 
     def __repr__(self):
         return f"Port({self.name}={self.value})"

@@ -6,21 +6,24 @@ import math
 import time as _wall
 
 from .board import build, parse_value, read_profile, split_overrides
+from .engine import DEFAULT_ENGINE, check_engine
 from .errors import ConfigError, McusimError
 from .system import build_system, close_firmware_tasks, is_system
 
 
 class Simulation:
-    def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False):
+    def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False,
+                 engine: str = DEFAULT_ENGINE):
+        check_engine(engine)
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
         if is_system(profile):
-            ns = build_system(profile, where, overrides, firmware)
+            ns = build_system(profile, where, overrides, firmware, engine)
             topics = ns["topics"]
             self.members = ns["members"]
         else:
             part_params, fw_params, topics = split_overrides(profile, overrides)
-            ns = build(profile, where, part_params, firmware, fw_params)
+            ns = build(profile, where, part_params, firmware, fw_params, engine=engine)
             ns["topics"], ns["present"] = [], True
             self.members = {ns["board"]["name"]: ns}
         self.board_name = ns["board"]["name"]

@@ -144,7 +144,8 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     return sys_parts
 
 
-def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool) -> dict:
+def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool,
+                 engine: str = "reference") -> dict:
     system = profile["system"]
     specs = profile.get("member", [])
     if not specs:
@@ -171,7 +172,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         profile, overrides, where, _firmware_inputs(member_profiles[main][0]))
     if not present[main]:
         raise ConfigError(f"--set {main}.present=false: {main} is the system's main board")
-    kernel = Kernel(TimeBase(clocks))
+    kernel = Kernel(TimeBase(clocks), engine)
 
     # nets that system parts drive into board parts: created first, handed to both sides
     link_nets, external = {}, {name: {} for name in names}

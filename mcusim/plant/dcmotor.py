@@ -47,11 +47,19 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from ..errors import ConfigError
-from ..kernel import PRIO_PLANT
+import numpy as np
+
+from ..engine import periodmap
+from ..engine.screening import ChunkTraj, PeriodPlan
+from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
 from .presets import motor_preset
 
 INF = math.inf
+
+# fast engine: whole-period chunks are screened CHUNK_MIN periods ahead at first, doubling up to
+# CHUNK_MAX while nothing fires
+CHUNK_MIN, CHUNK_MAX = 16, 512
 
 # driver state when nothing drives the terminals: no current can flow in either direction
 OPEN_CIRCUIT = (-INF, INF, 0.0, True)
@@ -179,6 +187,13 @@ class DcMotor:
         self._s = 0                # mechanical: +1, −1, 0 (stuck)
         self._peak = abs(self._x0[0])
         self.segments = 0          # segments built (a cost counter)
+        self.chunk_ticks = 0       # fast engine: simulated ticks covered by whole-period chunks
+        self._fast = bool(getattr(kernel, "fast", False))
+        self._eig_cache = {}       # per (R_total, L, K, J_eq, b): kept when only an input changes
+        self._full_cache = {}
+        self._plans = {}           # fast engine: PeriodPlan per (schedule, first piece, modes, params)
+        self._chunk_n = CHUNK_MIN
+        self._chunk_retry = -1
         self._set_params(self.params)
         self._sync()
 
@@ -188,8 +203,7 @@ class DcMotor:
         self._J = p.J_eq
         self._tlp = p.load_reflected(+1)
         self._tln = p.load_reflected(-1)
-        self._eig_cache = {}
-        self._full_cache = {}
+        self._pkey = (p.L, p.K, self._J, p.b, p.tau_c, self._tlp, self._tln)
 
     def set_params(self, **overrides) -> None:
         """Change parameters at run time (advances to now first). Unknown names raise ConfigError."""
@@ -236,7 +250,7 @@ class DcMotor:
         n = self.kernel.now - self._t0
         if n == 0 or self._traj is None:
             return self._x0
-        return self._traj.eval(n * self._inv_hz) if n else self._x0
+        return self._at(self._traj, n)
 
     def state_at(self, tick: int):
         """(i, ω, θ) at ``tick``, which must lie in the current or the previous segment (≤ now)."""
@@ -244,10 +258,10 @@ class DcMotor:
             raise ValueError(f"state_at({tick}) is in the future (now {self.kernel.now})")
         if tick >= self._t0:
             n = tick - self._t0
-            return self._x0 if (n == 0 or self._traj is None) else self._traj.eval(n * self._inv_hz)
+            return self._x0 if (n == 0 or self._traj is None) else self._at(self._traj, n)
         if self._prev is not None and tick >= self._prev[0]:
             t0, tr = self._prev
-            return tr.eval((tick - t0) * self._inv_hz)
+            return self._at(tr, tick - t0)
         raise ValueError(f"state_at({tick}) is before the previous segment")
 
     @property
@@ -276,7 +290,7 @@ class DcMotor:
         inside each segment (real-eigenvalue case; complex case: boundaries only)."""
         n = self.kernel.now - self._t0
         if n and self._traj is not None:
-            return max(self._peak, self._segment_peak(self._traj, n * self._inv_hz))
+            return max(self._peak, self._segment_peak(self._traj, n))
         return self._peak
 
     @property
@@ -293,7 +307,14 @@ class DcMotor:
         m = {1: "w>0", -1: "w<0", 0: "stuck"}[self._s]
         return f"{e},{m}"
 
-    def _segment_peak(self, tr, t):
+    def _at(self, tr, n: int):
+        """State n ticks into segment ``tr`` (a closed form, or a chunk of PWM periods)."""
+        return tr.at(n) if tr.kind == "chunk" else tr.eval(n * self._inv_hz)
+
+    def _segment_peak(self, tr, n: int):
+        if tr.kind == "chunk":
+            return tr.peak(n)
+        t = n * self._inv_hz
         x = tr.eval(t)
         p = abs(x[0])
         te = tr.x1_extremum(t)
@@ -329,10 +350,9 @@ class DcMotor:
         now = self.kernel.now
         n = now - self._t0
         if n and self._traj is not None:
-            t = n * self._inv_hz
             tr = self._traj
-            self._peak = max(self._peak, self._segment_peak(tr, t))
-            self._x0 = tr.eval(t)
+            self._peak = max(self._peak, self._segment_peak(tr, n))
+            self._x0 = self._at(tr, n)
             self._prev = (self._t0, tr)
         self._t0 = now
         if self._pending is not None and self._pending_time == now:
@@ -406,26 +426,117 @@ class DcMotor:
         if s == 0:
             return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
         T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-        key = (rt, v0, T)
-        ent = self._full_cache.get(key)
-        if ent is None:
-            eig = self._eig_cache.get(rt)
-            A = (-rt / p.L, -p.K / p.L, p.K / self._J, -p.b / self._J)
-            if eig is None:
-                eig = self._eig_cache[rt] = pwl.eig2(*A)
-            ent = self._full_cache[key] = (eig, A, (v0 / p.L, -T / self._J))
-            if len(self._full_cache) > 256:
-                self._full_cache.clear()
-        eig, A, u = ent
+        eig, A, u = self._full_system(rt, v0, T)
         return pwl.affine2(eig, A, u, x0)
 
-    def _rebuild(self):
-        if self._ev is not None:
-            self._ev.cancel()
-            self._ev = None
-        self._pending = None
-        x0 = self._x0
-        drive = self._driver.drive_state() if self._driver is not None else OPEN_CIRCUIT
+    def _full_system(self, rt, v0, T):
+        """(eig, A, u) of the full (i, ω) system for loop resistance rt, voltage v0, torque term T."""
+        p = self.params
+        key = (rt, v0, T, self._pkey)
+        ent = self._full_cache.get(key)
+        if ent is None:
+            ekey = (rt, p.L, p.K, self._J, p.b)
+            A = (-rt / p.L, -p.K / p.L, p.K / self._J, -p.b / self._J)
+            eig = self._eig_cache.get(ekey)
+            if eig is None:
+                eig = self._eig_cache[ekey] = pwl.eig2(*A)
+            if len(self._full_cache) > 256:
+                self._full_cache.clear()
+            ent = self._full_cache[key] = (eig, A, (v0 / p.L, -T / self._J))
+        return ent
+
+    def _mode_guards(self, es, s, drive):
+        """The motor's own guards in mode (es, s): i reaching 0, ω reaching 0, DCM exit, breakaway."""
+        guards = []
+        if es is not None and es != 0:
+            guards.append((float(es), 0.0, 0.0, 0.0, False, self, "i0"))
+        if s != 0:
+            guards.append((0.0, float(s), 0.0, 0.0, False, self, "w0"))
+            if es == 0:
+                guards.extend(self._dcm_guards(drive[0], drive[1]))
+        elif es != 0:
+            guards.extend(self._stick_guards())
+        return guards
+
+    # ---- the fast engine: a driver's steady periodic drive ------------------------------------------
+    def _piece_flow(self, drive, es, s, ticks):
+        """(flow, |A|, |u|, (a11, a12, u1)) of one piece of ``ticks`` in mode (es, s)."""
+        p = self.params
+        vp, vn, rbr, _ = drive
+        rt = p.R + rbr
+        v0 = vn if es == -1 else vp
+        tau = ticks * self._inv_hz
+        if s == 0:
+            lam = -rt / p.L
+            i_ss = v0 / rt
+            return (periodmap.stuck_flow(lam, i_ss, tau), np.array(((abs(lam), 0.0), (0.0, 0.0))),
+                    np.array((abs(lam * i_ss), 0.0)), (lam, 0.0, -lam * i_ss))
+        T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
+        eig, A, u = self._full_system(rt, v0, T)
+        return (periodmap.full_flow(eig, A, u, tau), np.abs(np.array(((A[0], A[1]), (A[2], A[3])))),
+                np.abs(np.array(u)), (A[0], A[1], u[0]))
+
+    def _try_chunk(self, sched, j, x0) -> bool:
+        """From the start of piece ``j``: advance whole periods if no guard can fire in them."""
+        _, P, pieces = sched
+        npc = len(pieces)
+        plan_pieces, modes = [], []
+        x = x0
+        for q in range(npc):
+            idx = (j + q) % npc
+            off, drive, bguards = pieces[idx]
+            ticks = (pieces[idx + 1][0] if idx + 1 < npc else P) - off
+            es, s = self._select(x, drive)
+            if es == 0:
+                return False        # discontinuous conduction: a guard event every period
+            flow, absA, absu, lin = self._piece_flow(drive, es, s, ticks)
+            guards = tuple(self._mode_guards(es, s, drive)) + tuple(bguards)
+            plan_pieces.append((ticks, flow, absA, absu, guards, drive, (es, s), lin))
+            modes.append((es, s))
+            v = flow @ np.array((x[0], x[1], x[2], 1.0))
+            x = (float(v[0]), float(v[1]), float(v[2]))
+        key = (P, tuple((o, d, g) for o, d, g in pieces), j, tuple(modes), self._pkey, self.params.R)
+        plan = self._plans.get(key)
+        if plan is None:
+            if len(self._plans) > 64:
+                self._plans.clear()
+            plan = self._plans[key] = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
+        extra = []
+        for prov in self._providers:
+            if prov is not self._driver:
+                extra.extend(prov.plant_guards())
+        n = self._chunk_n
+        k = plan.first_flag(x0, n, tuple(extra))
+        now = self.kernel.now
+        if k == 0:
+            self._chunk_n = CHUNK_MIN
+            self._chunk_retry = now + P
+            return False
+        self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
+        self._es, self._s = modes[0]
+        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode))
+        self.segments += 1
+        self.chunk_ticks += k * P
+        self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
+        return True
+
+    def _on_piece_end(self):
+        self._ev = None
+        self._grow = False
+        self._sync()
+
+    def _rebuild_periodic(self, sched, x0):
+        anchor, P, pieces = sched
+        now = self.kernel.now
+        ph = (now - anchor) % P
+        j = len(pieces) - 1
+        while pieces[j][0] > ph:
+            j -= 1
+        if ph == pieces[j][0] and now >= self._chunk_retry and self._try_chunk(sched, j, x0):
+            return
+        # one piece, edge by edge: the reference engine's segment, screened up to the piece end
+        n_end = (pieces[j + 1][0] if j + 1 < len(pieces) else P) - ph
+        drive = pieces[j][1]
         es, s = self._select(x0, drive)
         self._es, self._s = es, s
         tr = self._traj = self._build(x0, drive, es, s)
@@ -433,17 +544,32 @@ class DcMotor:
         self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
         self._grow = False
         if tr.kind == "static":
-            guards = []
-        else:
-            guards = []
-            if es is not None and es != 0:
-                guards.append((float(es), 0.0, 0.0, 0.0, False, self, "i0"))
-            if s != 0:
-                guards.append((0.0, float(s), 0.0, 0.0, False, self, "w0"))
-                if es == 0:
-                    guards.extend(self._dcm_guards(drive[0], drive[1]))
-            elif es != 0:
-                guards.extend(self._stick_guards())
+            self._ev = self.kernel.at(now + n_end, self._on_piece_end, prio=PRIO_HW)
+            return
+        guards = self._mode_guards(es, s, drive)
+        for prov in self._providers:
+            guards.extend(prov.plant_guards())
+        self._screen(tr, x0, guards, limit=n_end)
+
+    def _rebuild(self):
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        self._pending = None
+        x0 = self._x0
+        if self._fast and self._driver is not None and hasattr(self._driver, "drive_schedule"):
+            sched = self._driver.drive_schedule()
+            if sched is not None:
+                self._rebuild_periodic(sched, x0)
+                return
+        drive = self._driver.drive_state() if self._driver is not None else OPEN_CIRCUIT
+        es, s = self._select(x0, drive)
+        self._es, self._s = es, s
+        tr = self._traj = self._build(x0, drive, es, s)
+        self.segments += 1
+        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
+        self._grow = False
+        guards = [] if tr.kind == "static" else self._mode_guards(es, s, drive)
         for prov in self._providers:
             guards.extend(prov.plant_guards())
         if tr.kind == "static":
@@ -453,9 +579,11 @@ class DcMotor:
             return
         self._screen(tr, x0, guards)
 
-    def _screen(self, tr, x0, guards):
+    def _screen(self, tr, x0, guards, limit=None):
+        """Locate the first guard to fire within the horizon (or ``limit`` ticks, the end of a
+        periodic drive's piece, if sooner) and schedule its event, or the re-check/piece-end event."""
         inv = self._inv_hz
-        H = self._h
+        H = self._h if limit is None else min(self._h, limit)
         cache = {0: x0}
         ev = tr.eval
 
@@ -482,11 +610,15 @@ class DcMotor:
                 best, firing = n, [g]
             else:  # n == best
                 firing.append(g)
+        at_end = limit is not None and (H if best is None else best) == limit
         if best is None:
-            self._ev = self.kernel.at(self._t0 + H, self._on_event, prio=PRIO_PLANT)
+            if at_end:
+                self._ev = self.kernel.at(self._t0 + H, self._on_piece_end, prio=PRIO_HW)
+            else:
+                self._ev = self.kernel.at(self._t0 + H, self._on_event, prio=PRIO_PLANT)
         else:
             self._pending, self._pending_time = firing, self._t0 + best
-            self._ev = self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_PLANT)
+            self._ev = self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_HW if at_end else PRIO_PLANT)
 
     def __repr__(self):
         i, w, th = self._now_state()

@@ -23,6 +23,10 @@ class MosfetBridge:
         """(V⁺, V⁻, R_br, has_diode): v_m = V± − R_br·i in the i > 0 / i < 0 domain (DcMotor's contract)."""
         legs = self.legs
         self._legs_seen = legs
+        return self.drive_for(legs)
+
+    def drive_for(self, legs):
+        """:meth:`drive_state` for the leg states ``legs``."""
         d = self._drive_cache.get(legs)
         if d is None:
             a, b = legs

@@ -99,8 +99,10 @@ class L6206Bridge(MosfetBridge):
         self._release_ev = None
         self._legs_seen = None
         self._drive_cache = {}
+        self._periodic = False      # fast engine: the motor follows drive_schedule()
+        self._edge_ev = None        # fast engine: edges of waveforms that do not share a period
         for net in (in1, in2, en):
-            net.listen(self._on_pin)
+            net.listen(self._on_pin, waves=True)
         motor.add_guard_provider(self)
         motor.attach_driver(self)
 
@@ -110,6 +112,46 @@ class L6206Bridge(MosfetBridge):
         if self.ocd_active or not self.en.level:
             return ("Z", "Z")
         return _TRUTH[(1 if self.in1.level else 0, 1 if self.in2.level else 0)]
+
+    def _legs_at(self, t):
+        lv = [n.wave.level_at(t) if n.wave is not None else n.level for n in (self.in1, self.in2, self.en)]
+        if self.ocd_active or not lv[2]:
+            return ("Z", "Z")
+        return _TRUTH[(lv[0], lv[1])]
+
+    def drive_schedule(self):
+        """Fast engine: ``(anchor, period, pieces)`` when the inputs are steady waveforms of one
+        period (pieces: ``(offset, drive_state, guards)`` from ``anchor``), else None (the drive is
+        constant, or edges come one by one)."""
+        waves = [n.wave for n in (self.in1, self.in2, self.en) if n.wave is not None]
+        if not waves or self.ocd_active:
+            self._periodic = False
+            return None
+        P = waves[0].period
+        if any(w.period != P for w in waves):
+            self._periodic = False
+            return None
+        anchor = waves[0].rise
+        offs = sorted({0} | {(w.rise - anchor) % P for w in waves} | {(w.rise + w.width - anchor) % P
+                                                                      for w in waves})
+        pieces = []
+        for o in offs:
+            legs = self._legs_at(anchor + o)
+            if pieces and pieces[-1][1] == legs:
+                continue
+            pieces.append((o, legs))
+        if len(pieces) > 1 and pieces[0][1] == pieces[-1][1]:   # the first piece began in the last
+            shift = pieces[-1][0]
+            anchor += shift
+            pieces = [(0, pieces[-1][1])] + [(o - shift + P, lg) for o, lg in pieces[1:-1]]
+            pieces.sort()
+        if len(pieces) == 1:
+            self._periodic = False
+            return None
+        self._periodic = True
+        I = self.params.I_ocd
+        ocd = ((-1.0, 0.0, 0.0, I, True, self, "ocd"), (1.0, 0.0, 0.0, I, True, self, "ocd"))
+        return (anchor, P, tuple((o, self.drive_for(lg), ocd if "H" in lg else ()) for o, lg in pieces))
 
 
     def set_params(self, **overrides) -> None:
@@ -148,8 +190,30 @@ class L6206Bridge(MosfetBridge):
         self.motor.input_changed()
 
     def _on_pin(self, net):
+        if self.kernel.fast:
+            if self._edge_ev is not None:
+                self._edge_ev.cancel()
+                self._edge_ev = None
+            waves = [n.wave for n in (self.in1, self.in2, self.en) if n.wave is not None]
+            if waves or self._periodic:
+                self._legs_seen = None
+                self.motor.input_changed()      # the motor asks drive_schedule()
+                if waves and not self._periodic and not self.ocd_active:
+                    self._next_edge()           # waveforms of different periods: edge by edge
+                return
         if self.legs != self._legs_seen:
             self.motor.input_changed()
+
+    def _next_edge(self):
+        now = self.kernel.now
+        t = min(n.wave.next_edge(now)[0] for n in (self.in1, self.in2, self.en) if n.wave is not None)
+        self._edge_ev = self.kernel.at(t, self._on_edge)
+
+    def _on_edge(self):
+        self._edge_ev = None
+        if self.legs != self._legs_seen:
+            self.motor.input_changed()
+        self._next_edge()
 
     def __repr__(self):
         return f"L6206Bridge({self.name}: {''.join(self.legs)}{' OCD' if self.ocd_active else ''})"

@@ -112,7 +112,11 @@ class Gpio(Peripheral):
                     route = self.af_table[key]
             self._route(n, route)
             if route is not None:
-                level = self._af_level(n, self.mcu.periph[route[0]].oc[route[1]].value)
+                port = self.mcu.periph[route[0]].oc[route[1]]
+                if port.wave is not None and not (otyper >> n) & 1:
+                    net.set_wave(self.name, port.wave)   # fast engine: a push-pull PWM output
+                    continue
+                level = self._af_level(n, port.value)
             net.set(self.name, level)
 
     def _af_level(self, n, value):
@@ -136,14 +140,23 @@ class Gpio(Peripheral):
         key = (n, route)
         if key not in self._listeners_on:  # connect once; the callbacks check the route is current
             self._listeners_on.add(key)
-            tim.oc[route[1]].listen(lambda port, n=n, route=route: self._oc_changed(n, route, port))
-            net.listen(lambda net, n=n, route=route: self._pin_changed(n, route, net))
-        tim.ti[route[1]].set(self.name, net.level)
+            # waveforms pass through a push-pull pin as they are; open drain needs every edge
+            tim.oc[route[1]].listen(lambda port, n=n, route=route: self._oc_changed(n, route, port),
+                                    waves=lambda n=n: not (self.value["OTYPER"] >> n) & 1)
+            net.listen(lambda net, n=n, route=route: self._pin_changed(n, route, net), waves=True)
+        self._pin_changed(n, route, net)
 
     def _oc_changed(self, n, route, port):
         if self._routes.get(n) == route:
-            self.pins[n].set(self.name, self._af_level(n, port.value))
+            if port.wave is not None and not (self.value["OTYPER"] >> n) & 1:
+                self.pins[n].set_wave(self.name, port.wave)
+            else:
+                self.pins[n].set(self.name, self._af_level(n, port.value))
 
     def _pin_changed(self, n, route, net):
         if self._routes.get(n) == route:
-            self.mcu.periph[route[0]].ti[route[1]].set(self.name, net.level)
+            ti = self.mcu.periph[route[0]].ti[route[1]]
+            if net.wave is not None:
+                ti.set_wave(self.name, net.wave)
+            else:
+                ti.set(self.name, net.level)

@@ -63,6 +63,7 @@ from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import Net, Port
 
 from .tim_input import EncoderStage, TiInput
+from .tim_steady import SteadyStage
 
 # CR1 bits (§1.2)
 CEN, UDIS, URS, OPM, DIR, ARPE, UIFREMAP = 1 << 0, 1 << 1, 1 << 2, 1 << 3, 1 << 4, 1 << 7, 1 << 11
@@ -145,7 +146,7 @@ def _registers(bits: int, arr_reset: int) -> tuple:
     )
 
 
-class Tim(EncoderStage, Peripheral):
+class Tim(EncoderStage, SteadyStage, Peripheral):
     SIZE = 0x400
     ACCESS_SIZES = (2, 4)  # RM: timer registers take half-word or word accesses
 
@@ -185,8 +186,10 @@ class Tim(EncoderStage, Peripheral):
         self._ev_cc = [None] * 5
         self._lazy = [None] * 5         # time of a CCxIF set not scheduled as an event
         self._inp = {1: TiInput(self.kernel, 1, self._ti_apply), 2: TiInput(self.kernel, 2, self._ti_apply)}
+        self._steady, self._uif_lazy = False, None   # fast engine (tim_steady)
         for ch in CHANNELS:
-            self.ti[ch].listen(self._ti_net)
+            # outside encoder mode the inputs are ignored, so a waveform on them needs no edges
+            self.ti[ch].listen(self._ti_net, waves=lambda: not self._sms)
 
     # ------------------------------------------------------------------ public helpers
     @property
@@ -227,6 +230,8 @@ class Tim(EncoderStage, Peripheral):
     def _cnt_at(self, t: int) -> int:
         if not self._run:
             return self._cnt
+        if self._steady and self._ev_wrap is None:
+            return self._steady_cnt_at(t)
         if t >= self._t_wrap:  # a wrap due now whose event has not run yet
             if self._cms:
                 return self._arr if self._up else 0
@@ -242,6 +247,9 @@ class Tim(EncoderStage, Peripheral):
     def _sync(self) -> None:
         """Bring _cnt/_tb to kernel.now (a whole number of CK_CNT ticks)."""
         if not self._run:
+            return
+        if self._steady and self._ev_wrap is None:
+            self._steady_sync()
             return
         now = self.kernel.now
         if now >= self._t_wrap:
@@ -308,6 +316,10 @@ class Tim(EncoderStage, Peripheral):
             self._ev_wrap.cancel()
             self._ev_wrap = None
         lazy, ev_cc, mode, ccr = self._lazy, self._ev_cc, self._mode, self._ccr
+        if self._steady:
+            self._steady_flush(now)
+            self._steady = False
+        self._uif_lazy = None
         sr = self.value["SR"]
         for ch in CHANNELS:
             if ev_cc[ch] is not None:
@@ -340,7 +352,8 @@ class Tim(EncoderStage, Peripheral):
                 up = self._up = False
             elif not up and cnt == 0:
                 up = self._up = True
-        self._refresh_outputs()
+        steady = self._steady_possible()
+        self._refresh_outputs(keep_waves=steady)
         if not run:
             self._t_wrap = None
             return
@@ -353,6 +366,13 @@ class Tim(EncoderStage, Peripheral):
         else:
             jw = arr - cnt if up else cnt
         self._t_wrap = tb + jw * tick
+        if steady:  # fast engine: waveforms, lazy flags, a wrap event only when it matters
+            if self._wrap_needed():
+                self._ev_wrap = kernel.at(self._t_wrap, self._on_wrap)
+            self._steady = True
+            self._publish_waves()
+            self._steady_lazy(now)
+            return
         self._ev_wrap = kernel.at(self._t_wrap, self._on_wrap)
         flag = self._flag_up if up else self._flag_down
         for ch in CHANNELS:
@@ -383,8 +403,9 @@ class Tim(EncoderStage, Peripheral):
             if self._en[ch]:
                 self.oc[ch].set(r ^ self._pol[ch])
 
-    def _refresh_outputs(self) -> None:
-        """OCxREF from the continuous comparison (§3.1), OCx = OCxREF xor CCxP when driven."""
+    def _refresh_outputs(self, keep_waves: bool = False) -> None:
+        """OCxREF from the continuous comparison (§3.1), OCx = OCxREF xor CCxP when driven.
+        ``keep_waves``: a port's waveform stays (the fast engine republishes it if it changed)."""
         cnt, up, ref = self._cnt, self._up, self._ref
         for ch in CHANNELS:
             m = self._mode[ch]
@@ -399,7 +420,10 @@ class Tim(EncoderStage, Peripheral):
             # frozen (0000): OCxREF keeps its level; input: no output
             v = (int(ref[ch]) ^ self._pol[ch]) if self._en[ch] else None
             port = self.oc[ch]
-            if port.value != v:
+            if port.wave is not None:
+                if not (keep_waves and m >= PWM1 and self._en[ch]):
+                    port.set(v)
+            elif port.value != v:
                 port.set(v)
 
     def _flush_lazy(self) -> None:
@@ -460,6 +484,8 @@ class Tim(EncoderStage, Peripheral):
         if not sms and (old & 0x10007) and self._cms == 0:
             self._up = not self.value["CR1"] & DIR
         self._plan()
+        for ch in CHANNELS:     # encoder mode needs every edge of TI1/TI2 (a waveform no longer does)
+            self.ti[ch].refresh()
 
     def _write_dier(self, old: int, new: int) -> None:
         self._sync()
@@ -470,10 +496,20 @@ class Tim(EncoderStage, Peripheral):
 
     def write_register(self, reg, data, lanes=-1):
         if reg.name == "SR":
+            if self._steady:
+                self._steady_flush(self.kernel.now)
             self._flush_lazy()  # a flag set before this write must be seen by it (rc_w0)
         super().write_register(reg, data, lanes)
+        if self._steady:
+            if reg.name == "SR":
+                self._steady_lazy(self.kernel.now)
+            elif self._ev_wrap is None and self._wrap_needed():
+                self._sync()    # a preload now waits for the next update event: it needs its wrap
+                self._plan()
 
     def _read_sr(self, stored: int) -> int:
+        if self._steady:
+            self._steady_flush(self.kernel.now)
         if self._lazy.count(None) != 5:
             self._flush_lazy()
         return self.value["SR"]
@@ -508,6 +544,8 @@ class Tim(EncoderStage, Peripheral):
     def _read_cnt(self, stored: int) -> int:
         cnt = self._cnt_at(self.kernel.now)
         if self.value["CR1"] & UIFREMAP:  # §1.2: bit 31 = UIFCPY
+            if self._steady:
+                self._steady_flush(self.kernel.now)
             cnt = (cnt & 0x7FFFFFFF) | ((self.value["SR"] & UIF) << 31)
         return cnt
 

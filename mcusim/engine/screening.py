@@ -1,0 +1,178 @@
+"""Guard screening over whole chunks of PWM periods, and the chunk segment of a DC motor.
+
+A motor fed a steady waveform (:mod:`mcusim.engine.waveform`) sees a periodic sequence of
+*pieces* (constant drive, constant mode). :class:`PeriodPlan` composes the pieces of one period,
+starting at a piece boundary, into a period map (:mod:`mcusim.engine.periodmap`) and screens every
+guard the edge-by-edge engine would screen in each piece (current reaching zero, speed reaching
+zero, breakaway, the bridge's over-current or current limit, encoder thresholds) over N periods at
+once:
+
+* the states at the start and end of every piece of every period come from the power table (one
+  matrix product per piece);
+* inside a piece of τ seconds starting at x, ``|x(t)|`` is bounded component-wise by
+  ``x̄ = (I − τ|A|)⁻¹(|x| + τ|u|)`` and so ``|ẋ| ≤ D = |A|·x̄ + |u|``; a guard h = c·x + c0 that is
+  positive at both ends with ``h_start + h_end > τ·|c|·D`` cannot reach zero inside (a Lipschitz
+  bound), with a safety margin for float rounding.
+
+The first period in which any guard *may* fire ends the chunk: the motor advances to its start
+with the period map's power and runs that period piece by piece, exactly as the edge-by-edge engine
+does (closed-form segments, guards located to the tick). The bound is conservative, never
+optimistic: a flagged period that does not fire costs only speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .periodmap import PowerTable
+
+#: relative safety margin of a screened guard value (float rounding of the maps, ~1e-12, times 1000)
+MARGIN = 1e-9
+
+
+class PeriodPlan:
+    """One period of pieces starting at a piece boundary, with its maps, guards and power table.
+
+    ``pieces``: list of ``(ticks, flow, absA, absu, guards, drive, mode)`` in time order, where
+    ``flow`` is the augmented 4×4 map of the piece, ``absA``/``absu`` the absolute values of the
+    piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
+    """
+
+    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int):
+        self.pieces = pieces
+        self.P = period_ticks
+        self.inv = inv_hz
+        # Q[p]: map from the period start to the start of piece p; Q[len] is the period map
+        Q = [np.eye(4)]
+        for pc in pieces:
+            Q.append(pc[1] @ Q[-1])
+        self.Q = Q
+        self.T = Q[-1]
+        self.table = PowerTable(self.T, n)
+        self.starts = []   # tick offset of each piece from the period start
+        off = 0
+        for pc in pieces:
+            self.starts.append(off)
+            off += pc[0]
+        # x̄ = W·|x| + w per piece (None when τ|A| is not a contraction: no bound, never chunk)
+        self.bounds = []
+        for ticks, _, absA, absu, *_ in pieces:
+            tau = ticks * inv_hz
+            m = np.eye(2) - tau * absA
+            det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+            if det <= 0 or tau * (absA[0, 0] + absA[1, 1]) >= 1.0:
+                self.bounds.append(None)
+                continue
+            W = np.linalg.inv(m)
+            if (W < 0).any():
+                self.bounds.append(None)
+                continue
+            self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
+
+    def first_flag(self, x0, n: int, extra_guards) -> int:
+        """The first period k (0..n) in which a guard may fire (n if none fires in n periods)."""
+        X = self.table.powers[:n + 1] @ np.array((x0[0], x0[1], x0[2], 1.0))   # (n+1, 4)
+        flag = n
+        npieces = len(self.pieces)
+        for p, pc in enumerate(self.pieces):
+            b = self.bounds[p]
+            if b is None:
+                return 0
+            W, w, tau, absA, absu = b
+            S = X[:flag] @ self.Q[p].T if p else X[:flag]
+            E = X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
+            ab = np.abs(S[:, :2])
+            xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
+            D = xb @ absA.T + absu                 # bound of |di/dt|, |dω/dt|
+            anybad = None
+            for g in pc[4] + extra_guards:
+                ci, cw, ct, c0 = g[0], g[1], g[2], g[3]
+                hs = S[:, 0] * ci + S[:, 1] * cw + S[:, 2] * ct + c0
+                he = E[:, 0] * ci + E[:, 1] * cw + E[:, 2] * ct + c0
+                lip = tau * (abs(ci) * D[:, 0] + abs(cw) * D[:, 1] + abs(ct) * xb[:, 1])
+                scale = (np.abs(S[:, 0] * ci) + np.abs(S[:, 1] * cw) + np.abs(S[:, 2] * ct) + abs(c0)) * MARGIN
+                bad = (hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)
+                anybad = bad if anybad is None else (anybad | bad)
+            if anybad is not None and anybad.any():
+                flag = int(np.argmax(anybad))
+                if flag == 0:
+                    return 0
+                X = X[:flag + 1]
+        return flag
+
+    def states_at_piece_starts(self, x0, k: int):
+        """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
+        X = self.table.powers[:k] @ np.array((x0[0], x0[1], x0[2], 1.0))
+        return np.stack([X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
+
+
+class ChunkTraj:
+    """A motor segment of whole periods: state at any tick from the power table and the pieces."""
+
+    kind = "chunk"
+
+    def __init__(self, plan: PeriodPlan, x0, build_piece):
+        self.plan, self.x0 = plan, tuple(x0)
+        self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
+
+    def at(self, n: int):
+        """State n ticks after the chunk start."""
+        if n == 0:
+            return self.x0
+        plan = self.plan
+        k, r = divmod(n, plan.P)
+        xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
+        if r == 0:
+            return xk
+        p = 0
+        starts = plan.starts
+        while p + 1 < len(starts) and starts[p + 1] <= r:
+            p += 1
+        if p:
+            v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
+            xk = (float(v[0]), float(v[1]), float(v[2]))
+        rest = r - starts[p]
+        if rest == 0:
+            return xk
+        _, _, _, _, _, drive, mode = plan.pieces[p]
+        return self._build_piece(xk, drive, mode).eval(rest * plan.inv)
+
+    def peak(self, n: int) -> float:
+        """Largest |i| over the first n ticks: at every piece boundary and at the current's
+        stationary point inside a piece (as the edge-by-edge engine tracks it per segment)."""
+        plan = self.plan
+        k = n // plan.P
+        best = abs(self.x0[0])
+        npc = len(plan.pieces)
+        if k:
+            S = plan.states_at_piece_starts(self.x0, k)            # (k, pieces, 3)
+            best = max(best, float(np.abs(S[:, :, 0]).max()), abs(plan.table.state(self.x0, k)[0]))
+            for p, pc in enumerate(plan.pieces):
+                a11, a12, u1 = pc[7]
+                xs = S[:, p]
+                xe = S[:, p + 1] if p + 1 < npc else plan.table.states(self.x0, k)[1:]
+                ds = a11 * xs[:, 0] + a12 * xs[:, 1] + u1
+                de = a11 * xe[:, 0] + a12 * xe[:, 1] + u1
+                for kk in np.nonzero(ds * de < 0.0)[0]:
+                    tr = self._build_piece(tuple(float(v) for v in xs[kk]), pc[5], pc[6])
+                    te = tr.x1_extremum(pc[0] * plan.inv)
+                    if te is not None:
+                        best = max(best, abs(tr.eval(te)[0]))
+        r = n - k * plan.P
+        if r:   # the partial last period
+            t = k * plan.P
+            for p, pc in enumerate(plan.pieces):
+                s = plan.starts[p]
+                if s >= r:
+                    break
+                xs = self.at(t + s)
+                tr = self._build_piece(xs, pc[5], pc[6])
+                span = min(pc[0], r - s) * plan.inv
+                best = max(best, abs(xs[0]), abs(tr.eval(span)[0]))
+                te = tr.x1_extremum(span)
+                if te is not None:
+                    best = max(best, abs(tr.eval(te)[0]))
+        return best
+
+
+__all__ = ["MARGIN", "ChunkTraj", "PeriodPlan"]
