@@ -80,7 +80,7 @@ def compose(flows):
 class PowerTable:
     """Powers ``T^k`` (k = 0..n) of an augmented affine map ``T``, built by doubling."""
 
-    __slots__ = ("n", "powers")
+    __slots__ = ("_flat", "n", "powers")
 
     def __init__(self, T, n: int):
         P = np.empty((n + 1, 4, 4))
@@ -90,17 +90,22 @@ class PowerTable:
         m = 1
         while m < n:
             hi = min(2 * m, n)
-            # T^(m+j) = T^j · T^m for j = 1..hi-m
-            P[m + 1:hi + 1] = P[1:hi - m + 1] @ P[m]
+            # T^(m+j) = T^j · T^m for j = 1..hi-m (rows of the stacked T^j times one matrix)
+            P[m + 1:hi + 1] = (P[1:hi - m + 1].reshape(-1, 4) @ P[m]).reshape(-1, 4, 4)
             m = hi
         self.n, self.powers = n, P
+        self._flat = P.reshape(-1, 4)
 
     def states(self, x0, n: int | None = None):
         """The states after k = 0..n periods from ``x0`` (rows (i, ω, θ))."""
-        n = self.n if n is None else n
+        return self.augmented_states(x0, self.n if n is None else n)[:, :3]
+
+    def augmented_states(self, x0, n: int):
+        """Rows (i, ω, θ, 1) after k = 0..n periods."""
         v = np.array((x0[0], x0[1], x0[2], 1.0))
-        return (self.powers[:n + 1] @ v)[:, :3]
+        return (self._flat[:4 * (n + 1)] @ v).reshape(n + 1, 4)
 
     def state(self, x0, k: int):
-        v = self.powers[k] @ np.array((x0[0], x0[1], x0[2], 1.0))
-        return (float(v[0]), float(v[1]), float(v[2]))
+        M = self.powers[k].tolist()
+        a, b, c = x0
+        return tuple(r[0] * a + r[1] * b + r[2] * c + r[3] for r in M[:3])

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..plant import pwl
 from .periodmap import PowerTable
 
 #: relative safety margin of a screened guard value (float rounding of the maps, ~1e-12, times 1000)
@@ -69,15 +70,16 @@ class PeriodPlan:
                 continue
             self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
 
-    def first_flag(self, x0, n: int, extra_guards) -> int:
-        """The first period k (0..n) in which a guard may fire (n if none fires in n periods)."""
-        X = self.table.powers[:n + 1] @ np.array((x0[0], x0[1], x0[2], 1.0))   # (n+1, 4)
+    def first_flag(self, x0, n: int, extra_guards):
+        """(k, X): the first period k (0..n) in which a guard may fire (n if none fires in n
+        periods), and the states X[0..k] at the period starts (rows (i, ω, θ, 1))."""
+        X = self.table.augmented_states(x0, n)   # (n+1, 4)
         flag = n
         npieces = len(self.pieces)
         for p, pc in enumerate(self.pieces):
             b = self.bounds[p]
             if b is None:
-                return 0
+                return 0, X[:1]
             W, w, tau, absA, absu = b
             S = X[:flag] @ self.Q[p].T if p else X[:flag]
             E = X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
@@ -96,13 +98,13 @@ class PeriodPlan:
             if anybad is not None and anybad.any():
                 flag = int(np.argmax(anybad))
                 if flag == 0:
-                    return 0
+                    return 0, X[:1]
                 X = X[:flag + 1]
-        return flag
+        return flag, X
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
-        X = self.table.powers[:k] @ np.array((x0[0], x0[1], x0[2], 1.0))
+        X = self.table.augmented_states(x0, k - 1)
         return np.stack([X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
 
 
@@ -111,9 +113,54 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, build_piece):
+    def __init__(self, plan: PeriodPlan, x0, build_piece, X):
         self.plan, self.x0 = plan, tuple(x0)
         self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
+        self.X = X                           # states at the period starts of the chunk
+        self.periods = len(X) - 1
+
+    def first_fire(self, g, after: int, inv: float):
+        """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
+        or None. θ is monotone in a chunk (ω keeps its sign: its guard is screened), so the period
+        is found from the period-start values, and the tick inside it exactly as the edge-by-edge
+        engine finds it: from the closed form of the piece (from ``after`` if that lies inside)."""
+        ct, c0, strict = g[2], g[3], g[4]
+        h = self.X[:, 2] * ct + c0
+        fired = (h < 0.0) if strict else (h <= 0.0)
+        if not fired.any():
+            return None
+        kb = int(np.argmax(fired))
+        plan = self.plan
+        P = plan.P
+        q0 = max(0, min(kb - 1, after // P))
+        npc = len(plan.pieces)
+        m2of = pwl.guard_m2
+        for q in range(q0, kb):
+            Xq = self.X[q]
+            for p, pc in enumerate(plan.pieces):
+                ts = q * P + plan.starts[p]
+                te = ts + pc[0]
+                if te <= after:
+                    continue
+                # θ at the piece end (monotone in the chunk): no crossing in this piece if not fired
+                the = float(plan.Q[p + 1][2] @ Xq) if p + 1 < npc else float(self.X[q + 1][2])
+                he = the * ct + c0
+                if not (he < 0.0 if strict else he <= 0.0):
+                    continue
+                if ts >= after:
+                    v = plan.Q[p] @ Xq
+                    xs = (float(v[0]), float(v[1]), float(v[2]))
+                else:
+                    xs, ts = self.at(after), after
+                tr = self._build_piece(xs, pc[5], pc[6])
+                n = te - ts
+                xe = tr.eval(n * inv)
+                ha, hb = pwl.hval(g, xs), pwl.hval(g, xe)
+                k = pwl.first_fire(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), m2of(g, tr.m2), 0, n,
+                                   ha, hb, strict, inv)
+                if k is not None:
+                    return ts + k
+        return None
 
     def at(self, n: int):
         """State n ticks after the chunk start."""
@@ -134,7 +181,7 @@ class ChunkTraj:
         rest = r - starts[p]
         if rest == 0:
             return xk
-        _, _, _, _, _, drive, mode = plan.pieces[p]
+        drive, mode = plan.pieces[p][5], plan.pieces[p][6]
         return self._build_piece(xk, drive, mode).eval(rest * plan.inv)
 
     def peak(self, n: int) -> float:

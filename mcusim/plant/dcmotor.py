@@ -194,6 +194,9 @@ class DcMotor:
         self._plans = {}           # fast engine: PeriodPlan per (schedule, first piece, modes, params)
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
+        self._ev_passive = None    # fast engine: next passive guard (encoder threshold) in a segment
+        self._passive = ()
+        self._seg_end = 0
         self._set_params(self.params)
         self._sync()
 
@@ -503,10 +506,10 @@ class DcMotor:
             plan = self._plans[key] = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
         extra = []
         for prov in self._providers:
-            if prov is not self._driver:
+            if prov is not self._driver and not getattr(prov, "passive_guards", False):
                 extra.extend(prov.plant_guards())
         n = self._chunk_n
-        k = plan.first_flag(x0, n, tuple(extra))
+        k, X = plan.first_flag(x0, n, tuple(extra))
         now = self.kernel.now
         if k == 0:
             self._chunk_n = CHUNK_MIN
@@ -514,11 +517,60 @@ class DcMotor:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode))
+        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X)
         self.segments += 1
         self.chunk_ticks += k * P
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
+        self._find_passive()
         return True
+
+    def _find_passive(self):
+        """Schedule the next firing of a passive provider's guards (an encoder threshold: its
+        handler changes no input of the motor) inside the current chunk, which stays as it is."""
+        tr = self._traj
+        inv = self._inv_hz
+        after = self.kernel.now - self._t0
+        if tr.kind == "chunk":
+            end = tr.periods * tr.plan.P
+            search = lambda g: tr.first_fire(g, after, inv)  # noqa: E731
+        else:           # a closed-form segment, up to its own next event
+            end = self._seg_end
+            if end <= after:
+                return
+            xa, xe = self._at(tr, after), tr.eval(end * inv)
+            hval = pwl.hval
+            search = lambda g: pwl.first_fire(  # noqa: E731
+                lambda k: hval(g, tr.eval(k * inv)), pwl.guard_m2(g, tr.m2), after, end,
+                hval(g, xa), hval(g, xe), g[4], inv)
+        best, firing = None, []
+        for prov in self._providers:
+            if getattr(prov, "passive_guards", False):
+                for g in prov.plant_guards():
+                    n = search(g)
+                    if n is None or (best is not None and n > best):
+                        continue
+                    if best is None or n < best:
+                        best, firing = n, [g]
+                    else:
+                        firing.append(g)
+        if best is None:
+            return
+        if best == end:      # at the segment's own event: that event runs it first
+            if self._pending is not None and self._pending_time == self._t0 + best:
+                self._pending = self._pending + firing
+            else:
+                self._pending, self._pending_time = firing, self._t0 + best
+        else:
+            self._passive = firing
+            self._ev_passive = self.kernel.at(self._t0 + best, self._on_passive, prio=PRIO_PLANT)
+
+    def _on_passive(self):
+        self._ev_passive = None
+        tr = self._traj
+        for g in self._passive:
+            g[5].on_guard(g[6])
+        if self._traj is tr and self._ev_passive is None:
+            self._find_passive()
 
     def _on_piece_end(self):
         self._ev = None
@@ -555,6 +607,9 @@ class DcMotor:
         if self._ev is not None:
             self._ev.cancel()
             self._ev = None
+        if self._ev_passive is not None:
+            self._ev_passive.cancel()
+            self._ev_passive = None
         self._pending = None
         x0 = self._x0
         if self._fast and self._driver is not None and hasattr(self._driver, "drive_schedule"):
@@ -593,6 +648,11 @@ class DcMotor:
                 x = cache[n] = ev(n * inv)
             return x
 
+        passive = ()
+        if self._fast:  # encoder thresholds: located after the others, without ending the segment
+            passive = [g for g in guards if getattr(g[5], "passive_guards", False)]
+            if passive:
+                guards = [g for g in guards if not getattr(g[5], "passive_guards", False)]
         xH = state(H)
         m2 = tr.m2
         best = None
@@ -619,6 +679,9 @@ class DcMotor:
         else:
             self._pending, self._pending_time = firing, self._t0 + best
             self._ev = self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_HW if at_end else PRIO_PLANT)
+        if passive:
+            self._seg_end = H if best is None else best
+            self._find_passive()
 
     def __repr__(self):
         i, w, th = self._now_state()

@@ -37,6 +37,10 @@ class QuadratureEncoder:
     :meth:`drop_edges`).
     """
 
+    # the guards depend on θ only and their handler changes no input of the motor: the fast engine
+    # locates them inside a chunk of PWM periods without ending it
+    passive_guards = True
+
     def __init__(self, kernel, motor, a: Net, b: Net, counts_per_rev: int = 64, name: str = "encoder1"):
         if int(counts_per_rev) != counts_per_rev or counts_per_rev <= 0:
             raise ConfigError(f"encoder {name}: counts_per_rev = {counts_per_rev!r} must be a positive integer")
