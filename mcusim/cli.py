@@ -9,6 +9,8 @@ import statistics
 import sys
 import time
 
+from .engine import DEFAULT_ENGINE, ENGINES
+
 from .errors import ConfigError, McusimError, TimeError
 from .progress import run_with_progress
 from .time import parse_duration
@@ -72,6 +74,9 @@ def _run_arguments(r) -> None:
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
     r.add_argument("--strict", action="store_true",
                    help="specification limits are errors, not warnings (an ADC clock above 4.5 MHz)")
+    r.add_argument("--engine", choices=ENGINES, default=DEFAULT_ENGINE,
+                   help="fast (default: steady waveforms, whole PWM periods at once) or reference (every "
+                        "edge its own event); both give the same results")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -106,9 +111,12 @@ def _parser() -> argparse.ArgumentParser:
     t.set_defaults(scenario=None)
     b = sub.add_parser("bench", help="real-time factor of a fixed scenario", epilog=EXAMPLES_BENCH,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    b.add_argument("board")
-    b.add_argument("--duration", type=_duration, default=parse_duration("1s"))
-    b.add_argument("--repeat", type=int, default=3)
+    b.add_argument("board", help="profile name (see `mcusim boards`)")
+    b.add_argument("--duration", type=_duration, default=parse_duration("1s"),
+                   help="simulated time of each run (default 1s)")
+    b.add_argument("--repeat", type=int, default=3, help="runs per engine; the median is reported (default 3)")
+    b.add_argument("--engine", choices=ENGINES + ("both",), default=DEFAULT_ENGINE,
+                   help="fast (default), reference, or both in one process with the speedup")
     b.add_argument("--json", metavar="FILE", help="write the figures as JSON")
     return p
 
@@ -150,7 +158,7 @@ def _build(args, scenario):
     with (capture_startup() if log_to is not None else nullcontext()) as startup:
         try:
             if scenario is not None:
-                sim = scenario.build(args.board, dict(args.sets), not args.no_firmware)
+                sim = scenario.build(args.board, dict(args.sets), not args.no_firmware, engine=args.engine)
                 for p in sim.peripherals() if args.strict else ():
                     if hasattr(p, "strict"):
                         p.strict = True
@@ -162,7 +170,8 @@ def _build(args, scenario):
             else:
                 sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
                 sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
-                sim = load(args.board, firmware=not args.no_firmware, overrides=sets, strict=args.strict)
+                sim = load(args.board, firmware=not args.no_firmware, overrides=sets, strict=args.strict,
+                           engine=args.engine)
         except BaseException:
             if startup is not None:
                 release(startup)
@@ -252,37 +261,62 @@ def cmd_trace(args) -> int:
     return cmd_run(args)
 
 
-def bench(board: str, duration, repeat: int = 3) -> dict:
-    """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run."""
+def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE) -> dict:
+    """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run.
+    ``engine="both"`` runs the fast and the reference engine alternately in this process and adds
+    ``reference_realtime_factor`` and ``speedup`` (fast over reference)."""
+    if engine == "both":
+        fast, ref = {}, {}
+        runs = [bench(board, duration, 1, e) for _ in range(repeat) for e in ENGINES]
+        fast = _median_of([r for r in runs if r["engine"] == "fast"])
+        ref = _median_of([r for r in runs if r["engine"] == "reference"])
+        fast["reference_realtime_factor"] = ref["realtime_factor"]
+        fast["reference_wall_s_median"] = ref["wall_s_median"]
+        fast["speedup"] = fast["realtime_factor"] / ref["realtime_factor"]
+        fast["engine"] = "both"
+        return fast
     from .board import read_profile
     from .sim import load
     profile = read_profile(board)[0]
     scenario = profile.get("bench", {}).get("set") or profile.get("run", {}).get("set", {})
     runs = []
     for _ in range(repeat):
-        sim = load(board, overrides=dict(scenario))
+        sim = load(board, overrides=dict(scenario), engine=engine)
         t0 = time.perf_counter()
         sim.run(seconds=duration)
         wall = time.perf_counter() - t0
-        runs.append((wall, sim.kernel.events, sim.time_s))
+        runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"]))
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
     return {"board": board, "scenario": ", ".join(f"{k}={v:g}" for k, v in scenario.items()), "simulated_s": sim_s,
             "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
-            "repeat": repeat}
+            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3]}
+
+
+def _median_of(runs: list) -> dict:
+    walls = sorted(r["wall_s_median"] for r in runs)
+    out = dict(min(runs, key=lambda r: abs(r["wall_s_median"] - statistics.median(walls))))
+    out.update(wall_s_median=statistics.median(walls), wall_s_min=walls[0], wall_s_max=walls[-1],
+               repeat=len(runs), realtime_factor=out["simulated_s"] / statistics.median(walls))
+    return out
 
 
 def cmd_bench(args) -> int:
     if args.repeat < 1:
         raise ConfigError(f"--repeat {args.repeat}: must be at least 1")
-    r = bench(args.board, args.duration, args.repeat)
+    r = bench(args.board, args.duration, args.repeat, args.engine)
     print(f"{r['board']} bench ({r['scenario']}): {r['simulated_s']:.3f} s simulated, "
           f"median wall {r['wall_s_median']:.2f} s (min {r['wall_s_min']:.2f}, max {r['wall_s_max']:.2f}) "
           f"over {r['repeat']} runs")
-    print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s; "
+    name = "fast" if r["engine"] == "both" else r["engine"]
+    print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s ({name} engine, "
+          f"{100 * r['fast_fraction']:.0f} % of the motor time in whole-period chunks); "
           f"{r['events']:,} events ({r['events_per_wall_s']:,.0f} per wall s)")
+    if r["engine"] == "both":
+        print(f"reference engine {r['reference_realtime_factor']:.3f}; speedup {r['speedup']:.1f}x "
+              f"(fast over reference, measured in this process)")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(r, f, indent=2)

@@ -36,6 +36,9 @@ def pytest_addoption(parser):
         "--mcusim-vcd", metavar="DIR", default=None, dest="mcusim_vcd",
         help="write a VCD trace of every simulation made by the mcusim_sim fixture into DIR, "
              "one file per simulation, named after the test node id")
+    group.addoption(
+        "--mcusim-engine", choices=("fast", "reference"), default=None, dest="mcusim_engine",
+        help="the engine of every simulation the mcusim_sim fixture makes (default: mcusim.load's, fast)")
 
 
 def pytest_report_header(config):
@@ -78,6 +81,9 @@ def mcusim_sim(request):
         # imported here, not at the top: keeps pytest start free of the models
         from mcusim.sim import load
 
+        engine = request.config.getoption("mcusim_engine", None)
+        if engine is not None:
+            kw.setdefault("engine", engine)
         sim = load(board, firmware=firmware, overrides=overrides, **kw)
         made.append(sim)
         if vcd_dir is not None:

@@ -76,9 +76,11 @@ class _Carrier:
         if self.wave is not None and not self._edge_listeners():
             return      # everyone reads the descriptor
         kernel = waves[0].kernel
-        t = min(w.next_edge(kernel.now)[0] for w in waves)
+        ts = [t for w, t in ((w, w.next_edge(kernel.now)[0]) for w in waves) if w.end is None or t < w.end]
+        if not ts:
+            return      # the owner publishes again before the next edge
         from .kernel import PRIO_HW
-        self._exp_ev = kernel.at(t, self._expand, prio=PRIO_HW)
+        self._exp_ev = kernel.at(min(ts), self._expand, prio=PRIO_HW)
 
     def _expand(self) -> None:
         self._exp_ev = None
@@ -240,10 +242,11 @@ class Port(_Carrier):
         """From now on the output is ``wave`` (its level now must be the port's value now)."""
         if wave is self.wave:
             return
+        changed = wave.level != self._val   # (exact when an edge listener keeps _val up to date)
         self._val = wave.level
         self.wave = wave
         self.refresh()
-        self._notify(False, True)
+        self._notify(changed, True)
 
     def _wave_sources(self):
         return [self.wave] if self.wave is not None else []

@@ -193,6 +193,10 @@ class Simulation:
             for key in getattr(self.firmware, "SUMMARY_TOP", ()):   # rover: odometry at top level
                 if key in out["firmware"]:
                     out[key] = out["firmware"].pop(key)
+        motors = list(self.motors.values())
+        ticks = self.kernel.now * len(motors)
+        out["engine"] = {"name": self.kernel.engine,
+                         "fast_fraction": (sum(m.fast_ticks for m in motors) / ticks) if ticks else 0.0}
         warned = [w for p in self.peripherals() for w in getattr(p, "warnings", ())]
         if warned:                 # specification limits the firmware exceeded (not errors unless strict)
             out["warnings"] = warned

@@ -15,9 +15,9 @@ MOE = 1 << 15
 
 
 def pwm_rig(name="TIM1", mhz=216, arr=4319, ccr=2160, mode=PWM1, pol=0, psc=0, cr1=0, moe=True, ocpe=0,
-            rcr=0):
+            rcr=0, engine="reference"):
     """HAL-like PWM init on CH1 (TIM_Base_SetConfig, TIM_OC1_SetConfig, PWM_Start); returns (rig, edges, t0)."""
-    rig = Rig(name, mhz)
+    rig = Rig(name, mhz, engine=engine)
     edges = rig.record(1)
     rig.w("CR1", cr1)
     rig.w("ARR", arr)

@@ -121,7 +121,7 @@ OFF = {"CR1": 0x00, "CR2": 0x04, "SMCR": 0x08, "DIER": 0x0C, "SR": 0x10, "EGR": 
 class Rig:
     """A Mcu with one timer on its bus, at ``mhz`` timer clock over a 216 MHz base."""
 
-    def __init__(self, name="TIM1", mhz=216, arr_reset=0):
+    def __init__(self, name="TIM1", mhz=216, arr_reset=0, engine="reference"):
         from mcusim.irq import Nvic
         from mcusim.kernel import Kernel
         from mcusim.mcu import Mcu
@@ -130,7 +130,7 @@ class Rig:
         from periph.stm32.tim import Tim
 
         self.tb = TimeBase([216_000_000])
-        self.kernel = Kernel(self.tb)
+        self.kernel = Kernel(self.tb, engine)
         self.bus = Bus()
         self.nvic = Nvic()
         core = self.tb.clock("HCLK", 216_000_000)

@@ -15,12 +15,17 @@ from __future__ import annotations
 
 
 class Waveform:
-    __slots__ = ("kernel", "period", "rise", "width")
+    """``end``: the tick at which the owner already knows it will publish again (a preload reaching
+    the shadow register at the next update event), or None. No edge at or after ``end`` is
+    expanded from this descriptor: the owner's state at ``end`` decides."""
 
-    def __init__(self, kernel, rise: int, period: int, width: int):
+    __slots__ = ("end", "kernel", "period", "rise", "width")
+
+    def __init__(self, kernel, rise: int, period: int, width: int, end: int | None = None):
         if not 0 < width < period:
             raise ValueError(f"waveform width {width} must lie strictly between 0 and the period {period}")
         self.kernel, self.rise, self.period, self.width = kernel, int(rise), int(period), int(width)
+        self.end = end
 
     def level_at(self, t: int) -> int:
         return 1 if (t - self.rise) % self.period < self.width else 0
@@ -41,6 +46,8 @@ class Waveform:
         """Transitions (tick, new level) with a < tick <= b, in order."""
         t, lv = self.next_edge(a)
         w, P = self.width, self.period
+        if self.end is not None:
+            b = min(b, self.end - 1)
         while t <= b:
             yield t, lv
             t += (P - w) if lv else w
@@ -48,7 +55,7 @@ class Waveform:
 
     def same_shape(self, other) -> bool:
         return (isinstance(other, Waveform) and other.period == self.period and other.width == self.width
-                and (other.rise - self.rise) % self.period == 0)
+                and (other.rise - self.rise) % self.period == 0 and self.end is None and other.end is None)
 
     def __repr__(self):
         return f"Waveform(rise={self.rise}, period={self.period}, width={self.width})"

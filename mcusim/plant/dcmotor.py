@@ -297,6 +297,12 @@ class DcMotor:
         return self._peak
 
     @property
+    def fast_ticks(self) -> int:
+        """Fast engine: simulated ticks this motor spent in whole-period chunks so far."""
+        tr = self._traj
+        return self.chunk_ticks + (self.kernel.now - self._t0 if tr is not None and tr.kind == "chunk" else 0)
+
+    @property
     def stuck(self) -> bool:
         return self._s == 0
 
@@ -354,6 +360,8 @@ class DcMotor:
         n = now - self._t0
         if n and self._traj is not None:
             tr = self._traj
+            if tr.kind == "chunk":
+                self.chunk_ticks += n
             self._peak = max(self._peak, self._segment_peak(tr, n))
             self._x0 = self._at(tr, n)
             self._prev = (self._t0, tr)
@@ -519,7 +527,6 @@ class DcMotor:
         self._es, self._s = modes[0]
         self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X)
         self.segments += 1
-        self.chunk_ticks += k * P
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
         return True
@@ -649,7 +656,8 @@ class DcMotor:
             return x
 
         passive = ()
-        if self._fast:  # encoder thresholds: located after the others, without ending the segment
+        if self._fast and limit is not None:  # encoder thresholds: located after the others, without
+            # ending the piece of a periodic drive
             passive = [g for g in guards if getattr(g[5], "passive_guards", False)]
             if passive:
                 guards = [g for g in guards if not getattr(g[5], "passive_guards", False)]

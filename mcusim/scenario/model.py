@@ -168,7 +168,8 @@ class Scenario(Checker):
             raise self._err(self._line("scenario", None, "board"),
                             f"the scenario is meant for board {self.board!r}, not {board!r}")
 
-    def build(self, board: str | None = None, overrides: dict | None = None, firmware: bool = True):
+    def build(self, board: str | None = None, overrides: dict | None = None, firmware: bool = True,
+              engine: str = "fast"):
         """``mcusim.load(board or self.board, overrides={**self.overrides, **overrides})``; a
         mistake in ``[set]`` is reported with the file and the line of its key."""
         from ..sim import load
@@ -180,7 +181,7 @@ class Scenario(Checker):
         extra = dict(overrides or {})
         sets = {**self.overrides, **extra}
         try:
-            return load(board, firmware=firmware, overrides=sets)
+            return load(board, firmware=firmware, overrides=sets, engine=engine)
         except ConfigError as exc:
             msg = str(exc)
             mine = [k for k in self.overrides if k not in extra]

@@ -73,7 +73,8 @@ class SteadyStage:
             rise, width = rise + width, P - width
         if width <= 0 or width >= P:
             return None
-        return Waveform(self.kernel, rise, P, width)
+        # a wrap with an event (a preload, UIE...) may change the waveform: it ends there
+        return Waveform(self.kernel, rise, P, width, t_wrap if self._ev_wrap is not None else None)
 
     def _publish_waves(self) -> None:
         for ch in (1, 2, 3, 4):

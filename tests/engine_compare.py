@@ -1,0 +1,139 @@
+"""Run one command line under both engines and compare what they wrote (the equality contract).
+
+Identical digital traces: every scalar VCD signal (pins, interrupt lines, bus wires) changes at the
+same ticks to the same values, and the register-access logs are identical line for line. Plant
+variables (the VCD's real-valued samples and the summary's numbers) agree within 1e-9 relative.
+A mismatch is reported with the signal, the first differing time and both values; a moved encoder
+edge (a float rounding that put a plant crossing on the other side of a tick) shows up there as a
+pin edge at different ticks, never silently tolerated.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from mcusim.cli import main
+
+REL = 1e-9
+WALL_KEYS = {"wall_s", "realtime_factor", "engine", "events"}
+
+
+def read_vcd(path: Path):
+    """{name: [(time_ps, value), ...]} and {name: type} from a VCD file."""
+    names, types, changes = {}, {}, {}
+    scope = []
+    t = 0
+    with open(path) as f:
+        in_defs = True
+        for line in f:
+            tok = line.split()
+            if not tok:
+                continue
+            if in_defs:
+                if tok[0] == "$scope":
+                    scope.append(tok[2])
+                elif tok[0] == "$upscope":
+                    scope.pop()
+                elif tok[0] == "$var":
+                    name = ".".join(scope + [tok[4]])
+                    names.setdefault(tok[3], []).append(name)
+                    types[name] = tok[1]
+                    changes[name] = []
+                elif tok[0] == "$enddefinitions":
+                    in_defs = False
+                continue
+            if tok[0].startswith("#"):
+                t = int(tok[0][1:])
+            elif tok[0] in ("$dumpvars", "$end", "$dumpall"):
+                continue
+            elif tok[0][0] in "rR":
+                for n in names[tok[1]]:
+                    changes[n].append((t, float(tok[0][1:])))
+            elif tok[0][0] in "bB":
+                for n in names[tok[1]]:
+                    changes[n].append((t, tok[0][1:]))
+            else:
+                for n in names[tok[0][1:]]:
+                    changes[n].append((t, tok[0][0]))
+    return changes, types
+
+
+def _close(a: float, b: float, scale: float) -> bool:
+    if math.isnan(a) or math.isnan(b):
+        return math.isnan(a) and math.isnan(b)
+    return abs(a - b) <= REL * max(abs(a), abs(b), scale)
+
+
+def _compare_values(where: str, a, b, problems: list) -> None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if k in WALL_KEYS:
+                continue
+            if k not in a or k not in b:
+                problems.append(f"{where}.{k}: only in one engine's summary")
+            else:
+                _compare_values(f"{where}.{k}", a[k], b[k], problems)
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            _compare_values(f"{where}[{i}]", x, y, problems)
+    elif isinstance(a, float) or isinstance(b, float):
+        if not (isinstance(a, (int, float)) and isinstance(b, (int, float)) and _close(a, b, 1e-12)):
+            problems.append(f"{where}: reference {a!r}, fast {b!r}")
+    elif a != b:
+        problems.append(f"{where}: reference {a!r}, fast {b!r}")
+
+
+def run_both(tmp_path: Path, argv: list[str]) -> dict:
+    """Run ``mcusim run`` with ``argv`` under each engine; returns {engine: (exit, dir)}."""
+    out = {}
+    for engine in ("reference", "fast"):
+        d = tmp_path / engine
+        d.mkdir(parents=True, exist_ok=True)
+        code = main(["run", *argv, "--engine", engine, "--quiet", "--vcd", str(d / "t.vcd"),
+                     "--register-log", str(d / "t.jsonl"), "--summary", str(d / "t.json")])
+        out[engine] = (code, d)
+    return out
+
+
+def differences(tmp_path: Path, argv: list[str]) -> list[str]:
+    """Everything in which the two engines' outputs differ (empty when they agree)."""
+    runs = run_both(tmp_path, argv)
+    (code_r, ref), (code_f, fast) = runs["reference"], runs["fast"]
+    problems = []
+    if code_r != code_f:
+        problems.append(f"exit status: reference {code_r}, fast {code_f}")
+    va, types = read_vcd(ref / "t.vcd")
+    vb, _ = read_vcd(fast / "t.vcd")
+    for name in sorted(set(va) | set(vb)):
+        a, b = va.get(name), vb.get(name)
+        if a is None or b is None:
+            problems.append(f"VCD {name}: only in one engine's trace")
+            continue
+        if types[name] == "real":
+            scale = max((abs(v) for _, v in a), default=0.0)     # relative to the signal's full scale
+            ta, tb = [t for t, _ in a], [t for t, _ in b]
+            if ta != tb:
+                problems.append(f"VCD {name}: sampled at different times")
+                continue
+            for (t, x), (_, y) in zip(a, b):
+                if not _close(x, y, scale):
+                    problems.append(f"VCD {name} at {t} ps: reference {x!r}, fast {y!r}")
+                    break
+        elif a != b:
+            first = next((i for i, (p, q) in enumerate(zip(a, b)) if p != q), min(len(a), len(b)))
+            pa = a[first] if first < len(a) else "end"
+            pb = b[first] if first < len(b) else "end"
+            problems.append(f"VCD {name}: change #{first} differs: reference {pa}, fast {pb} "
+                            f"({len(a)} and {len(b)} changes)")
+    la = (ref / "t.jsonl").read_text().splitlines()
+    lb = (fast / "t.jsonl").read_text().splitlines()
+    if la != lb:
+        first = next((i for i, (p, q) in enumerate(zip(la, lb)) if p != q), min(len(la), len(lb)))
+        problems.append(f"register log line {first + 1} differs: reference "
+                        f"{la[first] if first < len(la) else 'end'}, fast {lb[first] if first < len(lb) else 'end'}")
+    sa = json.loads((ref / "t.json").read_text())
+    sb = json.loads((fast / "t.json").read_text())
+    _compare_values("summary", sa, sb, problems)
+    return problems
