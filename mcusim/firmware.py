@@ -25,9 +25,10 @@ less urgent one instead of taking over its stacking; tail-chaining costs a full 
 
 from __future__ import annotations
 
+from .errors import McusimError
 from .kernel import PRIO_CPU
 
-THREAD_PRIO = 1 << 16  # execution priority of thread mode: below every exception
+THREAD_PRIO = 1 << 16  # execution priority of thread mode: below every exception (also in irq.py)
 
 
 class _Req:
@@ -93,7 +94,14 @@ class Task(Context):
 
 
 class Cpu:
-    """A single core executing ISRs (from the NVIC) and RTOS tasks, with cycle costs."""
+    """A single core executing ISRs (from the NVIC) and RTOS tasks, with cycle costs.
+
+    Each stretch of busy time is one kernel event at its end (``_busy``), moved when something
+    preempts it. An ISR is entered by one event (its entry latency elapsed: the handler body runs);
+    its return, when :meth:`Kernel.would_be_next` says nothing can come in between, is done in the
+    same event at the return tick instead of an event of its own (same tick, same order)."""
+
+    _MAX_INLINE = 8  # tail-chained returns/entries done in place before falling back to events
 
     def __init__(self, kernel, clock, nvic, entry_latency=12, name="cpu"):
         # ``nvic`` is the interrupt controller: mcusim.irq.Nvic or AvrInterrupts (same protocol)
@@ -107,6 +115,7 @@ class Cpu:
         self._dispatch_wanted = False
         self.isr_count: dict[int, int] = {}
         self.busy_ticks = 0
+        self._inline_depth = 0
 
     # --- firmware-facing ------------------------------------------------------------------
     def vector(self, irqn: int, handler, cost: int = 0) -> None:
@@ -126,20 +135,22 @@ class Cpu:
     def _top(self):
         if self.stack:
             return self.stack[-1]
-        return self.rtos.current if self.rtos else None
+        rtos = self.rtos
+        return rtos.current if rtos is not None else None
 
     def _busy(self, ctx: Context, ticks: int, on_done) -> None:
+        """``ctx`` is busy for ``ticks`` from now, then ``on_done(ctx)`` (paused while preempted)."""
         ctx.on_done = on_done
         if ctx is self._top():
             ctx.remaining = None
-            ctx.end_ev = self.kernel.after(ticks, self._finish, ctx, prio=PRIO_CPU)
+            ctx.end_ev = self.kernel.at(self.kernel.now + ticks, self._finish, ctx, prio=PRIO_CPU)
         else:
             ctx.remaining = ticks
 
     def _finish(self, ctx):
         ctx.end_ev = None
         done, ctx.on_done = ctx.on_done, None
-        done()
+        done(ctx)
 
     def _pause(self, ctx):
         if ctx is not None and ctx.end_ev is not None:
@@ -150,7 +161,7 @@ class Cpu:
     def _resume(self, ctx):
         if ctx is not None and ctx.remaining is not None and ctx.on_done is not None:
             ticks, ctx.remaining = ctx.remaining, None
-            ctx.end_ev = self.kernel.after(ticks, self._finish, ctx, prio=PRIO_CPU)
+            ctx.end_ev = self.kernel.at(self.kernel.now + ticks, self._finish, ctx, prio=PRIO_CPU)
 
     def run_code(self, fn, *args):
         """Run firmware Python code atomically; interrupt dispatch waits until it returns."""
@@ -174,41 +185,82 @@ class Cpu:
         else:
             self._dispatch()
 
-    def _dispatch(self) -> None:
-        best = self.nvic.best_pending()
+    def dispatch_last(self) -> None:
+        """:meth:`request_dispatch` called as the last thing an event does (a SysTick wrap): if the
+        entry of the interrupt taken is then the next event, it is done at once, in this event."""
+        if self._in_code:
+            self._dispatch_wanted = True
+        else:
+            self._dispatch(last=True)
+
+    def _dispatch(self, last=False) -> None:
+        """Take the most urgent pending interrupt if it may preempt what runs. ``last``: the caller
+        does nothing after this in the current event (so the entry may be done in place)."""
+        nvic = self.nvic
+        best = nvic.best_pending()
         if best is None:
             return
         prio, irqn = best
-        if prio >= self.current_priority():
+        if prio >= (self.stack[-1].prio if self.stack else THREAD_PRIO):
             return
-        if irqn not in self.vectors:
-            from .errors import McusimError
+        vec = self.vectors.get(irqn)
+        if vec is None:
             raise McusimError(f"interrupt {irqn} is enabled and pending but the firmware has no handler for it")
         self._pause(self._top())
-        self.nvic.acknowledge(irqn)
-        handler, cost = self.vectors[irqn]
-        ctx = IsrContext(irqn, self.nvic.context_priority(irqn), handler, cost)
+        nvic.acknowledge(irqn)
+        ctx = IsrContext(irqn, nvic.context_priority(irqn), vec[0], vec[1])
         self.stack.append(ctx)
-        self._busy(ctx, self.clock.cycles(self.entry_latency), lambda: self._enter(ctx))
+        kernel = self.kernel
+        t = kernel.now + self.entry_latency * self.clock.period
+        if last and self._inline_depth < self._MAX_INLINE and kernel.would_be_next(t, PRIO_CPU):
+            # the entry event would be the next one: enter now, at its tick
+            ctx.remaining = None
+            kernel.now = t
+            self._inline_depth += 1
+            try:
+                self._enter(ctx)
+            finally:
+                self._inline_depth -= 1
+        else:
+            ctx.on_done = self._enter
+            ctx.remaining = None
+            ctx.end_ev = kernel.at(t, self._finish, ctx, prio=PRIO_CPU)
 
     def _enter(self, ctx: IsrContext) -> None:
-        self.isr_count[ctx.irqn] = self.isr_count.get(ctx.irqn, 0) + 1
-        self.busy_ticks += self.clock.cycles(self.entry_latency + ctx.cost)
+        irqn = ctx.irqn
+        count = self.isr_count
+        count[irqn] = count.get(irqn, 0) + 1
+        period = self.clock.period
+        self.busy_ticks += (self.entry_latency + ctx.cost) * period
         self.run_code(ctx.handler)
-        self._busy(ctx, self.clock.cycles(ctx.cost), lambda: self._exit(ctx))
+        ticks = ctx.cost * period
+        if (self.stack[-1] is ctx and self._inline_depth < self._MAX_INLINE
+                and self.kernel.would_be_next(self.kernel.now + ticks, PRIO_CPU)):
+            # the return event would be the next one: return now, at its tick
+            ctx.remaining = None
+            self.kernel.now += ticks
+            self._inline_depth += 1
+            try:
+                self._exit(ctx)
+            finally:
+                self._inline_depth -= 1
+        else:
+            self._busy(ctx, ticks, self._exit)
 
     def _exit(self, ctx: IsrContext) -> None:
         assert self.stack[-1] is ctx
         self.stack.pop()
-        self.nvic.complete(ctx.irqn)
-        if self.rtos is not None:
-            self.rtos.interrupt_done()
-        best = self.nvic.best_pending()
-        if best is not None and best[0] < self.current_priority():
-            self._dispatch()  # tail-chain or nested preemption of what was below
+        nvic = self.nvic
+        nvic.complete(ctx.irqn)
+        rtos = self.rtos
+        if rtos is not None:
+            rtos.interrupt_done()
+        best = nvic.best_pending()
+        if best is not None and best[0] < (self.stack[-1].prio if self.stack else THREAD_PRIO):
+            self._dispatch(last=True)  # tail-chain or nested preemption of what was below
             return
-        if not self.stack and self.rtos is not None:
-            self.rtos.reschedule()
+        if not self.stack and rtos is not None:
+            rtos.reschedule()
         self._resume(self._top())
 
 
@@ -225,6 +277,7 @@ class Rtos:
         self.tasks: list[Task] = []
         self.current: Task | None = None
         self.tick_count = 0
+        self._wfi_blocked = 0   # tasks blocked in wait_for_interrupt (interrupt_done wakes them)
 
     def create_task(self, name: str, coro, priority: int) -> Task:
         """xTaskCreate: the task is ready and runs when the scheduler picks it."""
@@ -265,6 +318,9 @@ class Rtos:
         return _Req("signal", (signal, timeout))
 
     def interrupt_done(self) -> None:
+        if not self._wfi_blocked:
+            return
+        self._wfi_blocked = 0
         for t in self.tasks:
             if t.state == "blocked" and t.wake_tick == "wfi":
                 t.state, t.wake_tick = "ready", None
@@ -286,8 +342,10 @@ class Rtos:
 
     def reschedule(self) -> None:
         """Pick the most urgent ready task (called in thread mode, after exceptions return)."""
-        ready = [t for t in self.tasks if t.state == "ready"]
-        best = max(ready, key=lambda t: t.priority, default=None)
+        best = None
+        for t in self.tasks:   # the first of the most urgent ready tasks
+            if t.state == "ready" and (best is None or t.priority > best.priority):
+                best = t
         cur = self.current
         if cur is not None and cur.state == "ready" and best is not None and best.priority <= cur.priority:
             best = cur  # equal priority does not preempt (no time slicing)
@@ -306,7 +364,7 @@ class Rtos:
 
     def _step(self, task: Task) -> None:
         if self.current is not task or self.cpu.stack:
-            task.remaining, task.on_done = 0, lambda: self._step(task)
+            task.remaining, task.on_done = 0, self._step
             return
         result, task.result = task.result, None
         try:
@@ -317,12 +375,12 @@ class Rtos:
             return
         if req.kind == "cycles":
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
-            self.cpu._busy(task, self.cpu.clock.cycles(req.arg), lambda: self._step(task))
+            self.cpu._busy(task, self.cpu.clock.cycles(req.arg), self._step)
         elif req.kind == "signal":
             signal, timeout = req.arg
             task.state, task.wake_tick = "blocked", "signal"
             task.deadline = None if timeout is None else self.tick_count + max(1, int(timeout))
-            task.on_done = lambda: self._step(task)
+            task.on_done = self._step
             task.remaining = 0
 
             token = task.wait_token = object()   # a waiter left behind by a timeout must not wake a later wait
@@ -337,7 +395,8 @@ class Rtos:
             self._switch()
         elif req.kind == "wfi":
             task.state, task.wake_tick = "blocked", "wfi"
-            task.on_done = lambda: self._step(task)
+            self._wfi_blocked += 1
+            task.on_done = self._step
             task.remaining = 0
             self._switch()
         elif req.kind in ("delay", "delay_until"):
@@ -346,7 +405,7 @@ class Rtos:
                 self.kernel.after(0, self._step, task, prio=PRIO_CPU)
                 return
             task.state, task.wake_tick = "blocked", wake
-            task.on_done = lambda: self._step(task)
+            task.on_done = self._step
             task.remaining = 0
             self._switch()
         else:

@@ -17,6 +17,7 @@ from .registers import Field, Peripheral, Register
 
 SYSTICK = -1
 PENDSV = -2
+_THREAD_PRIO = 1 << 16  # mcusim.firmware.THREAD_PRIO (thread mode, below every exception)
 
 
 def _words(name, offset, count):
@@ -59,10 +60,15 @@ class Nvic(Peripheral):
         if level:
             self.set_pending(irqn)
 
-    def set_pending(self, irqn: int) -> None:
+    def set_pending(self, irqn: int, last: bool = False) -> None:
+        """Pend ``irqn``. ``last``: the caller's event does nothing after this call (the CPU may
+        then take the interrupt's entry in the same event, see ``Cpu.dispatch_last``)."""
         self.pending.add(irqn)
         if self.cpu is not None:
-            self.cpu.request_dispatch()
+            if last:
+                self.cpu.dispatch_last()
+            else:
+                self.cpu.request_dispatch()
 
     def prio(self, irqn: int) -> int:
         return self.priority.get(irqn, 0)
@@ -74,9 +80,10 @@ class Nvic(Peripheral):
     def best_pending(self):
         """(priority, irqn) of the most urgent pending, enabled interrupt, or None."""
         best = None
+        enabled, priority = self.enabled, self.priority
         for n in self.pending:
-            if n < 0 or n in self.enabled:
-                key = (self.prio(n), n)
+            if n < 0 or n in enabled:
+                key = (priority.get(n, 0), n)
                 if best is None or key < best:
                     best = key
         return best
@@ -226,15 +233,15 @@ class AvrInterrupts:
     def best_pending(self):
         if not self.i_flag:
             return None
-        pending = [v for v, lv in self.lines.items() if lv]
-        if not pending:
-            return None
-        v = min(pending)
-        return (v, v)
+        best = None
+        for v, lv in self.lines.items():
+            if lv and (best is None or v < best):
+                best = v
+        return None if best is None else (best, best)
 
-    def context_priority(self, vector: int) -> int:
-        from .firmware import THREAD_PRIO
-        return THREAD_PRIO  # priority never blocks nesting on AVR: only the I flag does
+    @staticmethod
+    def context_priority(vector: int) -> int:
+        return _THREAD_PRIO  # priority never blocks nesting on AVR: only the I flag does
 
     def acknowledge(self, vector: int) -> None:
         self.i_flag = False

@@ -2,6 +2,14 @@
 
 Events are ordered by (time, priority, sequence number): the same inputs give the same order,
 byte for byte. Cancelling is lazy (a flag), so a cancelled event costs one pop.
+
+A model that is about to schedule an event at the very end of the event it is handling may ask
+:meth:`Kernel.would_be_next` whether that event would be the next one the run loop pops; if so it
+may advance ``now`` and do the work at once instead (the firmware runtime does this for an ISR's
+return). That is exactly what the loop would do next: every queued event comes later in the
+(time, priority, sequence) order, a new event's sequence number is larger than all queued ones,
+and the run's end and ``stop`` are respected (``horizon``). ``events`` counts the events popped
+from the queue, not the work done in place of an event.
 """
 
 from __future__ import annotations
@@ -40,6 +48,7 @@ class Kernel:
         self._queue = []
         self._seq = 0
         self.events = 0  # events processed
+        self.horizon = -1  # while running: the last tick an event may run at (-1: none, see would_be_next)
 
     def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
         if time < self.now:
@@ -51,6 +60,20 @@ class Kernel:
 
     def after(self, delay: int, fn, *args, prio: int = PRIO_HW) -> Event:
         return self.at(self.now + delay, fn, *args, prio=prio)
+
+    def would_be_next(self, time: int, prio: int) -> bool:
+        """True if an event scheduled now at (``time``, ``prio``) would be the next one run, within
+        the current ``run_until`` (never when it has a ``stop`` check, which runs between events)."""
+        if time > self.horizon:
+            return False
+        q = self._queue
+        while q:
+            head = q[0]
+            if head[3].cancelled:
+                heapq.heappop(q)
+                continue
+            return head[0] > time or (head[0] == time and head[1] > prio)
+        return True
 
     def next_time(self):
         q = self._queue
@@ -67,6 +90,8 @@ class Kernel:
         q = self._queue
         pop = heapq.heappop
         n = 0
+        outer = self.horizon
+        self.horizon = t_end if stop is None else -1
         try:
             while q and q[0][0] <= t_end:
                 time, _, _, ev = pop(q)
@@ -81,3 +106,4 @@ class Kernel:
             self.now = max(self.now, t_end)
         finally:
             self.events += n
+            self.horizon = outer

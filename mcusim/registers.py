@@ -86,6 +86,9 @@ class Register:
                 owner[bit] = kind
             masks[kind] |= f.mask
         self._masks = masks
+        # the masks write_register applies, as attributes (one lookup each on the write path)
+        self.m_rw, self.m_w, self.m_rc_w0, self.m_rc_w1, self.m_rc_r = (
+            masks["rw"], masks["w"], masks["rc_w0"], masks["rc_w1"], masks["rc_r"])
         self.unmodelled = tuple(f for f in self.fields if not f.modelled)
         self.by_name = {f.name: f for f in self.fields}
         self.readable = masks["rw"] | masks["r"] | masks["rc_w0"] | masks["rc_w1"] | masks["rc_r"]
@@ -155,28 +158,65 @@ class Peripheral:
 
     def write_register(self, reg: Register, data: int, lanes: int = -1) -> None:
         """Apply a write of ``data`` to the byte lanes in ``lanes`` under the access rules."""
-        m = reg._masks
-        old = self.value[reg.name]
-        new = (old & ~m["rw"]) | (data & m["rw"])
-        new &= ~(m["rc_w0"] & ~data)          # rc_w0: a written 0 clears
-        new &= ~(m["rc_w1"] & data)           # rc_w1 / w1c: a written 1 clears
-        new = (new & ~m["w"]) | (data & m["w"])
+        values, name, m_rw, m_w = self.value, reg.name, reg.m_rw, reg.m_w
+        old = values[name]
+        new = (old & ~m_rw) | (data & m_rw)
+        new &= ~(reg.m_rc_w0 & ~data)         # rc_w0: a written 0 clears
+        new &= ~(reg.m_rc_w1 & data)          # rc_w1 / w1c: a written 1 clears
+        new = (new & ~m_w) | (data & m_w)
         new = (new & lanes) | (old & ~lanes)  # lanes not written keep their value
         for f in reg.unmodelled:
             v = f.get(new)
             if v != f.get(reg.reset):
-                raise UnsupportedConfiguration(self.name, reg.name, f.name, v)
-        self.value[reg.name] = new
+                raise UnsupportedConfiguration(self.name, name, f.name, v)
+        values[name] = new
         if reg.on_write:
             try:
                 getattr(self, reg.on_write)(old, new)
             except UnsupportedConfiguration:
-                self.value[reg.name] = old  # a refused write leaves the register as it was
+                values[name] = old  # a refused write leaves the register as it was
                 raise
-        if m["w"]:
-            self.value[reg.name] &= ~m["w"]
+        if m_w:
+            values[name] &= ~m_w
         if self.access_log is not None:
             self.access_log("write", self, reg, data, old)
+
+    # --- accessors resolved once per (address, size), used by Bus -------------------------------
+    def bus_reader(self, offset: int, size: int, address: int):
+        """A function of no argument doing ``bus_read(offset, size, address)``. Resolved once: the
+        register, its masks, hook and byte lane; a subclass that overrides ``bus_read`` gets a
+        plain call of it. Raises what ``bus_read`` would raise for a bad access."""
+        if type(self).bus_read is not Peripheral.bus_read:
+            bus_read = self.bus_read
+            return lambda: bus_read(offset, size, address)
+        reg = self._reg_at(offset, size, address)
+        values, name, rc_r = self.value, reg.name, reg.m_rc_r
+        hook = getattr(self, reg.on_read) if reg.on_read else None
+        keep = (1 << reg.width) - 1 if hook is not None else reg.readable
+        shift = (offset % self.BUS_WIDTH) * 8
+        lane = (1 << (8 * size)) - 1
+
+        def read():
+            stored = values[name]
+            value = (hook(stored) if hook is not None else stored) & keep
+            if rc_r:
+                values[name] = stored & ~rc_r
+            if self.access_log is not None:
+                self.access_log("read", self, reg, value, stored)
+            return (value >> shift) & lane
+        return read
+
+    def bus_writer(self, offset: int, size: int, address: int):
+        """A function of the data doing ``bus_write(offset, data, size, address)``, resolved once
+        (see :meth:`bus_reader`)."""
+        if type(self).bus_write is not Peripheral.bus_write:
+            bus_write = self.bus_write
+            return lambda data: bus_write(offset, data, size, address)
+        reg = self._reg_at(offset, size, address)
+        shift = (offset % self.BUS_WIDTH) * 8
+        lanes = (((1 << (8 * size)) - 1) << shift) & ((1 << (8 * self.BUS_WIDTH)) - 1)
+        write_register = self.write_register
+        return lambda data: write_register(reg, (data << shift) & lanes, lanes)
 
 
 class Bus:
@@ -188,6 +228,14 @@ class Bus:
         self._entries: list[tuple[int, int, Peripheral]] = []
         self._cache: dict[int, tuple[Peripheral, int]] = {}
         self._single: dict[int, tuple[Peripheral, int]] = {}
+        # accessors resolved at the first access, keyed by 8 * address + size
+        self._readers: dict[int, object] = {}
+        self._writers: dict[int, object] = {}
+
+    def _clear(self):
+        self._cache.clear()
+        self._readers.clear()
+        self._writers.clear()
 
     def attach(self, base: int, periph: Peripheral, size: int | None = None) -> None:
         size = periph.SIZE if size is None else size
@@ -197,7 +245,7 @@ class Bus:
             raise ValueError(f"{periph.name} at {base:#x} overlaps another peripheral")
         self._bases.insert(i, base)
         self._entries.insert(i, (base, size, periph))
-        self._cache.clear()
+        self._clear()
 
     def attach_registers(self, base: int, periph: Peripheral) -> None:
         """Map each register of ``periph`` at ``base + offset`` individually (AVR I/O space, where
@@ -208,7 +256,7 @@ class Bus:
                 if addr in self._single or self.peripheral_at(addr) is not None:
                     raise ValueError(f"{periph.name}.{reg.name} at {addr:#x} overlaps another register")
                 self._single[addr] = (periph, reg.offset + k * periph.BUS_WIDTH)
-        self._cache.clear()
+        self._clear()
 
     def peripheral_at(self, address: int) -> tuple[Peripheral, int] | None:
         hit = self._single.get(address)
@@ -232,15 +280,35 @@ class Bus:
             self._cache[address] = hit
         return hit
 
+    def reader(self, address: int, size: int):
+        """The function of no argument that reads ``size`` bytes at ``address`` (resolved once)."""
+        fn = self._readers.get(8 * address + size)
+        if fn is None:
+            p, off = self._lookup(address, size)
+            fn = self._readers[8 * address + size] = p.bus_reader(off, size, address)
+        return fn
+
+    def writer(self, address: int, size: int):
+        """The function of the value that writes ``size`` bytes at ``address`` (resolved once)."""
+        fn = self._writers.get(8 * address + size)
+        if fn is None:
+            p, off = self._lookup(address, size)
+            fn = self._writers[8 * address + size] = p.bus_writer(off, size, address)
+        return fn
+
     def read(self, address: int, size: int) -> int:
-        p, off = self._lookup(address, size)
-        return p.bus_read(off, size, address)
+        fn = self._readers.get(8 * address + size)
+        if fn is None:
+            fn = self.reader(address, size)
+        return fn()
 
     def write(self, address: int, value: int, size: int) -> None:
         if not 0 <= value < (1 << (8 * size)):
             raise ValueError(f"value {value:#x} does not fit a {8 * size}-bit write")
-        p, off = self._lookup(address, size)
-        p.bus_write(off, value, size, address)
+        fn = self._writers.get(8 * address + size)
+        if fn is None:
+            fn = self.writer(address, size)
+        fn(value)
 
     def read8(self, a): return self.read(a, 1)
     def read16(self, a): return self.read(a, 2)

@@ -57,6 +57,7 @@ INT_TRAMPOLINE_CYCLES = 60  # WInterrupts.c ISR + call of the user function, whe
 class ArduinoCore:
     def __init__(self, mcu, adc=None):
         self.mcu, self.bus, self.cpu, self.rtos, self.irq = mcu, mcu.bus, mcu.cpu, mcu.rtos, mcu.irq
+        self._read, self._write = mcu.bus.read, mcu.bus.write
         self.adc = adc
         self.timer0_overflow_count = 0
         self.timer0_millis = 0
@@ -69,10 +70,10 @@ class ArduinoCore:
 
     # --- registers --------------------------------------------------------------------------
     def _r(self, a):
-        return self.bus.read8(a)
+        return self._read(a, 1)
 
     def _w(self, a, v):
-        self.bus.write8(a, v & 0xFF)
+        self._write(a, v & 0xFF, 1)
 
     def cli(self):
         self.irq.set_i(False)

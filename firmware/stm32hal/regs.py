@@ -22,13 +22,14 @@ SCB_BASE = 0xE000ED00
 class RegView:
     """A CMSIS-like peripheral struct over the bus."""
 
-    __slots__ = ("_base", "_bus", "_regs", "name")
+    __slots__ = ("_addr", "_base", "_bus", "_regs", "name")
 
     def __init__(self, bus, name, base, regs):
         object.__setattr__(self, "_bus", bus)
         object.__setattr__(self, "_base", base)
         object.__setattr__(self, "_regs", regs)
         object.__setattr__(self, "name", name)
+        object.__setattr__(self, "_addr", {reg: base + off for reg, off in regs.items()})
 
     @property
     def base(self):
@@ -36,17 +37,17 @@ class RegView:
 
     def __getattr__(self, reg):
         try:
-            off = self._regs[reg]
+            address = self._addr[reg]
         except KeyError:
             raise AttributeError(f"{self.name} has no register {reg}") from None
-        return self._bus.read(self._base + off, 4)
+        return self._bus.read(address, 4)
 
     def __setattr__(self, reg, value):
         try:
-            off = self._regs[reg]
+            address = self._addr[reg]
         except KeyError:
             raise AttributeError(f"{self.name} has no register {reg}") from None
-        self._bus.write(self._base + off, value & 0xFFFFFFFF, 4)
+        self._bus.write(address, value & 0xFFFFFFFF, 4)
 
 
 class Stm32f7:

@@ -37,11 +37,17 @@ class AvrPort(Peripheral):
     def connect_override(self, n: int, port) -> None:
         """Let a peripheral output (a ``Port``, value None = not driving) take over pin ``n``."""
         self.overrides[n] = port
-        port.listen(lambda _p: self._update(0, 0))
+        # a change of the alternate function's output concerns pin n only (the other pins' drive
+        # depends on DDR/PORT, and every write of those updates them all)
+        port.listen(lambda _p, n=n: self._update_pin(n, self.value["DDR"], self.value["PORT"]))
         self._update(0, 0)
 
     def _read_pin(self, stored):
-        return sum(1 << n for n, net in enumerate(self.pins) if net.level)
+        v = 0
+        for n, net in enumerate(self.pins):
+            if net.level:
+                v |= 1 << n
+        return v
 
     def _write_pin(self, old, new):
         self.value["PORT"] ^= new & 0xFF  # writing 1 to PINxn toggles PORTxn
@@ -49,11 +55,15 @@ class AvrPort(Peripheral):
 
     def _update(self, old, new):
         ddr, port = self.value["DDR"], self.value["PORT"]
-        for n, net in enumerate(self.pins):
-            out = (ddr >> n) & 1
-            level = None
-            if out:
-                alt = self.overrides.get(n)
-                level = alt.value if alt is not None and alt.value is not None else (port >> n) & 1
-            net.pull = 1 if (not out and (port >> n) & 1) else None
-            net.set(self.name, level)
+        for n in range(len(self.pins)):
+            self._update_pin(n, ddr, port)
+
+    def _update_pin(self, n, ddr, port):
+        net = self.pins[n]
+        out = (ddr >> n) & 1
+        level = None
+        if out:
+            alt = self.overrides.get(n)
+            level = alt.value if alt is not None and alt.value is not None else (port >> n) & 1
+        net.pull = 1 if (not out and (port >> n) & 1) else None
+        net.set(self.name, level)

@@ -94,10 +94,12 @@ class SysTick(Peripheral):
         self._ev = self.kernel.at(t, self._zero)
 
     def _zero(self):
-        self.set_bits("CTRL", 1 << 16)
-        if self.field("CTRL", "TICKINT"):
-            self.nvic.set_pending(SYSTICK)
+        ctrl = self.value["CTRL"] | (1 << 16)
+        self.value["CTRL"] = ctrl
         if self._load:
             self._ev = None
             self._t0, self._val0 = self.kernel.now, 0  # rebase at each wrap: exact and cheap
             self._schedule(self.kernel.now + (self._load + 1) * self._clk.period)
+        if ctrl & 2:  # TICKINT. Pended last, after the next wrap is scheduled (a CPU-priority entry
+            # cannot tie with that hardware-priority wrap), so the CPU may take the entry in place
+            self.nvic.set_pending(SYSTICK, last=True)
