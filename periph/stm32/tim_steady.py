@@ -131,9 +131,12 @@ class SteadyStage:
     def _steady_lazy(self, after: int) -> None:
         """Re-arm the lazy flags: the next match of each output channel, the next UIF."""
         flag = self._flag_up if self._up else self._flag_down
+        # with a wrap event ahead (a preload...), matches from the wrap on are re-derived there
+        limit = self._t_wrap if self._ev_wrap is not None else None
         for ch in (1, 2, 3, 4):
             if flag and self._mode[ch] >= 0 and self._lazy[ch] is None:
-                self._lazy[ch] = self._next_match(ch, after)
+                t = self._next_match(ch, after)
+                self._lazy[ch] = t if limit is None or (t is not None and t < limit) else None
         if self._ev_wrap is None and not self.value["CR1"] & _UDIS and self._uif_lazy is None:
             self._uif_lazy = self._next_wrap(after)
 
