@@ -32,7 +32,12 @@ def load_scenario(path) -> Scenario:
     mistake raises ConfigError ``<file>:<line>: <problem>``."""
     p = _resolve(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        data = p.read_bytes()
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"{p}:{line}: not a UTF-8 text file (byte {data[exc.start]:#04x} at offset "
+                          f"{exc.start}); a scenario is TOML text") from None
     except OSError as exc:
         known = ", ".join(scenario_names())
         raise ConfigError(f"cannot read scenario {str(path)!r}: {exc.strerror}"
