@@ -33,6 +33,13 @@ def board_names() -> list[str]:
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
 
 
+def shipped_text(board: str) -> str:
+    """The text of a shipped profile (``mcusim boards --show``)."""
+    if board not in board_names():
+        raise ConfigError(f"unknown board {_show(str(board))}; known boards: {', '.join(board_names())}")
+    return (importlib.resources.files("boards") / f"{board}.toml").read_text(encoding="utf-8")
+
+
 def read_profile(board: str) -> tuple[dict, str]:
     """The parsed and checked profile of a board name (``nucleo-f746``) or a path to a .toml
     file. Any mistake raises ConfigError ``<file>:<line>: <problem>``."""

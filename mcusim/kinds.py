@@ -184,12 +184,12 @@ def _motor_params():
         gear_ratio=_num(30.0, min=0.01, max=1e5, doc="motor turns per output turn"),
         efficiency=_num(0.78, above=0, max=1.0, doc="gearbox efficiency"),
         load_inertia=_num(0.0, min=0, max=1e4, unit="kg·m²", doc="on the output shaft"),
-        load_torque=_num(0.0, min=-1e4, max=1e4, unit="N·m", doc="on the output shaft, against positive rotation"),
+        load_torque=_num(0.0, min=-1e3, max=1e3, unit="N·m", doc="on the output shaft, against positive rotation"),
         current=_num(0.0, min=-1e3, max=1e3, unit="A", doc="initial current"),
         speed=_num(0.0, min=-1e4, max=1e4, unit="rad/s", doc="initial motor-shaft speed"),
         angle=_num(0.0, min=-1e6, max=1e6, unit="rad", doc="initial motor-shaft angle"),
-        horizon=_num(50e-6, min=1e-7, max=1e-2, unit="s", doc="first step of the event search"),
-        max_horizon=_num(5e-3, min=1e-7, max=1.0, unit="s", doc="longest step of the event search"),
+        horizon=_num(50e-6, min=1e-6, max=1e-2, unit="s", doc="first step of the event search"),
+        max_horizon=_num(5e-3, min=1e-6, max=1.0, unit="s", doc="longest step of the event search"),
     )
 
 
@@ -242,7 +242,8 @@ PARTS = {k.name: k for k in (
         "IBT-2: two Infineon BTS7960 half bridges", terminals=(("RPWM", "LPWM"), ("R_EN", "L_EN")),
         refs=("motor",)),
     Kind("part", "encoder", "mcusim.plant.encoder:QuadratureEncoder", _P(
-        counts_per_rev=Param(64, min=1, max=1_000_000, unit="counts/motor turn")),
+        counts_per_rev=Param(64, min=1, max=100_000, unit="counts per motor turn",
+                             doc="quadrature counts (4 per line of the disc)")),
         "quadrature encoder on the motor shaft", terminals=(("A", "B"), ()), refs=("motor",)),
     Kind("part", "battery", "mcusim.plant.parts:BatteryPart", _P(
         count=Param(2, min=1, max=8, doc="12 V batteries in parallel"),
@@ -360,3 +361,37 @@ def known(group: str) -> list[str]:
 def all_kinds(group: str) -> list[Kind]:
     return [lookup(group, n, "mcusim") if n == "dcmotor" else (_BUILTIN[group].get(n) or _entry_points(group)[n])
             for n in known(group)]
+
+
+def reference(group: str) -> str:
+    """Markdown tables of every kind of ``group`` and its parameters (``docs/boards.md`` holds the
+    project's own; ``mcusim boards --kinds`` prints them with the registered ones)."""
+    from .params import Param
+    out = []
+    for kind in all_kinds(group):
+        head = f"#### `{kind.name}`" + (f" ({kind.origin})" if kind.origin != "mcusim" else "")
+        out += [head, "", (kind.doc[:1].upper() + kind.doc[1:] or "(undocumented)") + "."]
+        extra = []
+        if kind.needs:
+            extra.append("needs " + " and ".join(f"`{n}`" for n in kind.needs))
+        if group == "part":
+            req, opt = kind.terminals
+            if req or opt:
+                extra.append("terminals " + ", ".join([f"`{t}`" for t in req] + [f"`{t}` (optional)" for t in opt]))
+            if kind.refs:
+                extra.append("names other parts with " + ", ".join(f"`{r}`" for r in kind.refs))
+        if extra:
+            text = "; ".join(extra)
+            out[-1] += " " + text[:1].upper() + text[1:] + "."
+        params = kind.params
+        if group == "firmware":
+            params = getattr(kind.load(), "PARAMS", None) or {}
+        if params:
+            out += ["", "| key | type, default, range: meaning |", "|---|---|"]
+            for name, p in params.items():
+                p = p if isinstance(p, Param) else Param(p)
+                out.append(f"| `{name}` | {p.describe().replace('|', '/')} |")
+        elif kind.open_params:
+            out += ["", "Its parameters are not declared (no `PARAMS`): they are passed unchecked."]
+        out.append("")
+    return "\n".join(out)

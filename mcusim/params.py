@@ -31,7 +31,7 @@ def fmt_number(x) -> str:
     if isinstance(x, bool):
         return str(x).lower()
     if isinstance(x, int):
-        return str(x) if abs(x) < 10**9 else f"{x:.6g}"
+        return str(x) if abs(x) < 10**12 else f"{x:.6g}"
     try:
         f = float(x)
     except (TypeError, ValueError, OverflowError):
@@ -97,7 +97,7 @@ class Param:
 
     def range_text(self) -> str:
         """``from 1 to 1000 ms``, ``above 0 Ω``, ``one of correct, thesis`` (empty if unbounded)."""
-        u = f" {self.unit}" if self.unit and not self.unit.startswith("%") else self.unit
+        u = f" {self.unit}" if self.unit else ""
         lo = (f"{fmt_number(self.min)}", False) if self.min is not None else \
             (f"{fmt_number(self.above)}", True) if self.above is not None else None
         hi = (f"{fmt_number(self.max)}", False) if self.max is not None else \
@@ -144,7 +144,9 @@ class Param:
         kind = {bool: "true/false", int: "integer", float: "number", str: "text", tuple: "list",
                 list: "list"}.get(self.kind, self.kind.__name__)
         rng = self.range_text()
-        default = self.default if not isinstance(self.default, (int, float)) else fmt_number(self.default)
+        default = (fmt_number(self.default) if isinstance(self.default, (int, float)) else
+                   "none" if self.default == "" else ", ".join(map(fmt_number, self.default))
+                   if isinstance(self.default, (tuple, list)) else self.default)
         parts = [kind, f"default {default}"] + ([rng] if rng else [])
         return ", ".join(parts) + (f": {self.doc}" if self.doc else "")
 

@@ -225,7 +225,22 @@ def _check_peripherals(prof: Profile) -> None:
             _table(prof, spec["outputs"], f"{where} outputs", "peripheral", i, "outputs")
             for out, pin in spec["outputs"].items():
                 _string(prof, pin, f"{where} outputs.{out}", "peripheral", i, "outputs", out)
-        check_params(prof, kind, spec, ("name", "kind", "base", "clock", "outputs"), where, "peripheral", i)
+        params = check_params(prof, kind, spec, ("name", "kind", "base", "clock", "outputs"), where, "peripheral", i)
+        _check_interrupts(prof, params, where, i)
+
+
+def _check_interrupts(prof: Profile, params: dict, where: str, i: int) -> None:
+    """Interrupt numbers given to a peripheral must exist on the core (NVIC lines, AVR vectors)."""
+    core = prof.get("core", {})
+    avr = core.get("kind") == "avr"
+    limit, what = (core.get("vectors", 26), "vectors") if avr else (core.get("nvic_irqs", 98), "NVIC lines")
+    for key in ("irq", "irqs", "vector", "vectors"):
+        v = params.get(key)
+        values = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
+        for n in values:
+            if isinstance(n, int) and not isinstance(n, bool) and not 0 <= n < limit:
+                raise prof.err(f"{where}: {key}: interrupt {n} is not one of the core's {limit} {what}",
+                               "peripheral", i, key)
 
 
 def _check_wiring(prof: Profile, system: bool) -> None:
