@@ -50,6 +50,11 @@ exit status as for `mcusim run`.
 """
 EXAMPLES_BOARDS = """examples:
   mcusim boards
+  mcusim boards --show nucleo-f746
+  mcusim boards --kinds
+
+a profile is described in docs/boards.md; a copy of a shipped one is a good start for a board
+of your own: mcusim boards --show nucleo-f746 > my-board.toml, edit, mcusim run my-board.toml
 """
 EXAMPLES_BENCH = """examples:
   mcusim bench nucleo-f746 --repeat 3
@@ -115,8 +120,11 @@ def _common_arguments(r, default_duration: str, what: str) -> None:
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser, metavar="{boards,run,trace,bench}")
-    sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
-                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    bo = sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    bo.add_argument("--show", metavar="BOARD", help="print a shipped profile (to copy it into a board of your own)")
+    bo.add_argument("--kinds", action="store_true", help="list the peripheral, part and firmware kinds a "
+                    "profile may name, with their parameters (the project's own and registered ones)")
     r = sub.add_parser("run", help="run a board's firmware against its plant", epilog=EXAMPLES_RUN,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     _common_arguments(r, "2s", "the scenario's, else ")
@@ -280,6 +288,9 @@ def cmd_run(args) -> int:
                               f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
     duration = args.duration if args.duration is not None else (
         scenario.duration if scenario is not None else args.default_duration)
+    if duration > args.max_duration:
+        raise ConfigError(f"the run's default duration {fmt_duration(duration)} is longer than the limit of "
+                          f"{fmt_duration(args.max_duration)} given by --max-duration; give a --duration")
     outs, files = _outputs(args, scenario)
     sim = None
     try:
@@ -428,7 +439,16 @@ def main(argv=None) -> int:
     warnings.showwarning = _one_line_warning
     try:
         if args.cmd == "boards":
-            from .board import board_names, read_profile
+            from .board import board_names, read_profile, shipped_text
+            if args.show is not None:
+                sys.stdout.write(shipped_text(args.show))
+                return 0
+            if args.kinds:
+                from .kinds import reference
+                for group, title in (("peripheral", "Peripheral kinds"), ("part", "Part kinds"),
+                                     ("firmware", "Firmware kinds")):
+                    print(f"### {title}\n\n{reference(group)}")
+                return 0
             for name in board_names():
                 prof = read_profile(name)[0]
                 print(f"{name:<16}{(prof.get('board') or prof.get('system', {})).get('description', '')}")

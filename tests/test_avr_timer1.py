@@ -1,4 +1,4 @@
-"""ATmega328P Timer/Counter1: sheet vectors (/work/shared/reference/avr_arduino.md §7), datasheet
+"""ATmega328P Timer/Counter1: sheet vectors (the ATmega328P data sheet (project AVR notes) §7), datasheet
 rules, and the event-driven model against the per-clock oracle (tests/avr_timer_oracle.py)."""
 
 from itertools import pairwise

@@ -1,4 +1,4 @@
-"""LPC4337 ADC0/ADC1 (reference/lpc43xx_ciaa_mavlink.md §1): transfer function, software and burst
+"""LPC4337 ADC0/ADC1 (NXP UM10503 (project LPC43xx notes) §1): transfer function, software and burst
 timing at the sheet's CLKDIV values, the 4.5 MHz limit, DONE/OVERRUN rules, the interrupt line
 through the NVIC, the sampling instant, and the configurations that are refused."""
 

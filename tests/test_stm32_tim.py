@@ -1,5 +1,5 @@
 """STM32F746 TIM1-5/8 model: the reference sheet's test vectors (§6) through the bus, and the model's
-pinned choices. Sheet: /work/shared/reference/stm32_tim.md."""
+pinned choices. Sheet: ST RM0385 (project timer notes)."""
 
 import pytest
 from tim_oracle import Rig

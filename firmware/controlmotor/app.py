@@ -38,7 +38,7 @@ TIM3_IRQn, TIM4_IRQn = 29, 30
 configTICK_RATE_HZ = 1000
 
 DEFAULTS = {
-    "variant": Param("correct", choices=VARIANTS, doc="thesis: the literal code with its two bugs"),
+    "variant": Param("correct", choices=VARIANTS, doc="\"thesis\" runs the literal code with its two bugs"),
     "pid_period_ms": Param(5, min=1, max=1000, unit="ms", doc="period of the two PID tasks (FreeRTOS ticks of 1 ms)"),
     "executor_period_ms": Param(10, min=1, max=1000, unit="ms", doc="micro-ROS executor spin period"),
     # gains tuned on this model for a 1.57 rad step: 2.8 % overshoot, within 3 counts after 0.71 s,

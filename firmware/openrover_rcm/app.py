@@ -88,6 +88,9 @@ DEFAULTS = {
     "r_bottom": Param(6_800.0, above=0, max=1e9, unit="Ω", doc="battery divider, lower resistor"),
     "vref": Param(3.3, min=2.7, max=3.6, unit="V", doc="ADC reference (LPC4337 VDDA range)"),
     "battery_channel": Param(1, min=0, max=7, doc="ADC0 channel of the battery divider"),
+    # sAPI's adcInit at 200 kS/s: 204 MHz / 93 = 2.19 MHz; CLKDIV below 45 runs the ADC above its
+    # 4.5 MHz maximum (a warning, an error with --strict)
+    "adc_clkdiv": Param(92, min=0, max=255, doc="ADC0 CR.CLKDIV: the ADC clock is PCLK / (CLKDIV + 1)"),
     "low_v": Param(11.9, above=0, max=100.0, unit="V", doc="battery LOW threshold"),
     "critical_v": Param(11.5, above=0, max=100.0, unit="V", doc="battery CRITICAL threshold (below low_v)"),
     "hysteresis_v": Param(0.2, min=0, max=10.0, unit="V", doc="battery state hysteresis"),
@@ -148,7 +151,7 @@ class RoverControl:
                               f"of {self.layout.wheels} wheels")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
         self.rtos.tick_hz = p["tick_hz"]
-        self.board = CiaaBoard(mcu)
+        self.board = CiaaBoard(mcu, adc_clkdiv=p["adc_clkdiv"])
         self.counts_per_wheel_rev = p["counts_per_motor_rev"] * p["gear_ratio"]
         # state
         self.found: list[int] = []

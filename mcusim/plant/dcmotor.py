@@ -1,6 +1,6 @@
 """Brushed DC motor + gearbox + load, simulated exactly between events (ARCHITECTURE invariant 4).
 
-Physics (reference/plants.md §1.1), all on the motor shaft::
+Physics (the plant notes §1.1), all on the motor shaft::
 
     L·di/dt   = v_m − R·i − K·ω
     J_eq·dω/dt = K·i − b·ω − τc·sgn ω − τ_L,m          J_eq = J + load_inertia/N²
@@ -72,7 +72,7 @@ def _check_overrides(cls, overrides: dict, what: str):
 
 @dataclass(frozen=True)
 class MotorParams:
-    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (plants.md §1.3)."""
+    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (the plant notes §1.3)."""
 
     R: float = 2.18            # armature resistance, Ω
     L: float = 1.5e-3          # armature inductance, H

@@ -1,6 +1,7 @@
 """STM32F746 general-purpose and advanced timers TIM1-TIM5, TIM8 (time base, PWM, encoder).
 
-Reference: /work/shared/reference/stm32_tim.md (called "the sheet" below), §1-§4.
+Sources: ST RM0385, the TIM1/TIM8 and TIM2-TIM5 chapters ("the sheet" below; § marks are the
+project's timer notes).
 
 Modelled
 --------

@@ -1,6 +1,6 @@
 """Input stage of the STM32 general-purpose timers: TIx resynchronisation and the ICxF filter.
 
-Reference: /work/shared/reference/stm32_tim.md §4.3-§4.4.
+Sources: ST RM0385 (STM32F75xxx/74xxx reference manual), TIM input stage and filter.
 
 A TIx net edge reaches the timer's decoder (encoder mode) or capture stage through:
 
