@@ -239,6 +239,9 @@ def _build(args, scenario, log_target):
 
 
 def _check_run_args(args) -> None:
+    for opt in ("vcd", "csv", "plot", "summary", "register_log", "scenario"):
+        if getattr(args, opt, None) == "":
+            raise ConfigError(f"--{opt.replace('_', '-')}: an empty file name")
     if getattr(args, "register_log_filter", None) is not None:
         if args.register_log is None:
             raise ConfigError("--register-log-filter needs --register-log FILE (or '-' for stdout)")
@@ -394,6 +397,8 @@ def cmd_bench(args) -> int:
     if args.duration > args.max_duration:
         raise ConfigError(f"--duration {fmt_duration(args.duration)}: longer than the limit of "
                           f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
+    if args.json == "":
+        raise ConfigError("--json: an empty file name")
     outs = Outputs([args.board] if args.board.endswith(".toml") else [])
     out = outs.add("--json", args.json) if args.json else None
     outs.check()
@@ -416,6 +421,12 @@ def cmd_bench(args) -> int:
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
     print(f"mcusim: warning: {message}", file=sys.stderr)
+
+
+def _short(exc, limit: int = 600) -> str:
+    """An error message on one line of reasonable length (a 5000-character key is cut)."""
+    text = " ".join(str(exc).split("\n"))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _os_error(exc: OSError, args) -> str:
@@ -462,7 +473,7 @@ def main(argv=None) -> int:
             args.default_duration = Fraction(1, 1000)
             return cmd_trace(args)
     except (ConfigError, TimeError) as exc:
-        print(f"mcusim: error: {exc}", file=sys.stderr)
+        print(f"mcusim: error: {_short(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:              # `mcusim trace ... | head`: the reader has gone
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -471,7 +482,7 @@ def main(argv=None) -> int:
         print(f"mcusim: error: {_os_error(exc, args)}", file=sys.stderr)
         return 2
     except McusimError as exc:
-        print(f"mcusim: error: {exc}", file=sys.stderr)
+        print(f"mcusim: error: {_short(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("mcusim: interrupted", file=sys.stderr)

@@ -189,3 +189,9 @@ def test_bench_help_describes_every_option_with_its_default(capsys):
     out = capsys.readouterr().out
     for needle in ("--duration TIME", "(default 1s)", "--repeat N", "(default 3)", "--json FILE"):
         assert needle in out, out
+
+
+def test_an_empty_output_name_and_a_huge_key_are_one_short_line(capsys):
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--vcd", ""], "--vcd: an empty file name")
+    err = _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--set", "a" * 5000 + "=1"])
+    assert len(err) <= 620
