@@ -29,7 +29,7 @@ BUILD_ERRORS = (TypeError, ValueError, ArithmeticError, LookupError, AttributeEr
 
 
 def board_names() -> list[str]:
-    files = importlib.resources.files("boards")
+    files = importlib.resources.files("mcusim.boards")
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
 
 
@@ -37,7 +37,7 @@ def shipped_text(board: str) -> str:
     """The text of a shipped profile (``mcusim boards --show``)."""
     if board not in board_names():
         raise ConfigError(f"unknown board {_show(str(board))}; known boards: {', '.join(board_names())}")
-    return (importlib.resources.files("boards") / f"{board}.toml").read_text(encoding="utf-8")
+    return (importlib.resources.files("mcusim.boards") / f"{board}.toml").read_text(encoding="utf-8")
 
 
 def read_profile(board: str) -> tuple[dict, str]:
@@ -52,7 +52,7 @@ def read_profile(board: str) -> tuple[dict, str]:
         except OSError as exc:
             raise ConfigError(f"cannot read board profile {str(board)!r}: {exc.strerror or exc}") from None
     else:
-        res = importlib.resources.files("boards") / f"{board}.toml"
+        res = importlib.resources.files("mcusim.boards") / f"{board}.toml"
         if not res.is_file():
             raise ConfigError(f"unknown board {_show(str(board))}; known boards: {', '.join(board_names())}")
         data, where = res.read_bytes(), f"boards/{board}.toml"
@@ -317,7 +317,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             owner.connect_override(owner.pins.index(net), oc[out])
 
     if not avr:
-        from periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
+        from mcusim.periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
         hclk = mcu.clocks.get("HCLK", mcu.core_clock)
         ref = timebase.clock("SysTick_ref", hclk.hz / 8) if core.get("systick_ref") == "HCLK/8" else hclk
         systick = SysTick("SysTick", mcu, mcu.core_clock, ref)

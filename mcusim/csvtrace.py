@@ -130,7 +130,7 @@ def firmware_columns(sim) -> list[tuple[str, object]]:
                          (f"{prefix}.fw_position_rad",
                           lambda fw=fw, n=n: fw.topics[f"/motor{n}/get_pos"].value)]
         elif hasattr(fw, "setpoint") and hasattr(fw, "velocity") and hasattr(fw, "duty"):  # OpenRover module
-            from firmware.openrover_mcm.sketch import counts_to_rpm
+            from mcusim.fw.openrover_mcm.sketch import counts_to_rpm
             prefix = motors[0] if motors else f"{mname}.motor"
             cols += [(f"{prefix}.setpoint_rpm", lambda fw=fw: counts_to_rpm(fw.setpoint)),
                      (f"{prefix}.velocity_rpm", lambda fw=fw: counts_to_rpm(fw.velocity)),

@@ -122,47 +122,47 @@ def _P(**params):
 
 
 PERIPHERALS = {k.name: k for k in (
-    Kind("peripheral", "stm32-rcc", "periph.stm32.rcc:Rcc", {}, "STM32F7 reset and clock control",
+    Kind("peripheral", "stm32-rcc", "mcusim.periph.stm32.rcc:Rcc", {}, "STM32F7 reset and clock control",
          needs=("base",)),
-    Kind("peripheral", "stm32-tim", "periph.stm32.tim:Tim", _P(
+    Kind("peripheral", "stm32-tim", "mcusim.periph.stm32.tim:Tim", _P(
         irqs=_Table(("brk", "update", "trg_com", "cc"), _IRQ, doc="NVIC lines of the timer's events"),
         counter_bits=Param(16, choices=(16, 32), doc="counter width"),
         advanced=Param(False, doc="TIM1/TIM8: BDTR, RCR, complementary outputs"),
         arr_reset=Param(0, min=0, max=0xFFFFFFFF, doc="ARR after reset")),
         "STM32 general-purpose and advanced timer", needs=("base", "clock")),
-    Kind("peripheral", "stm32-gpio", "periph.stm32.gpio:Gpio", _P(port=_PORT),
+    Kind("peripheral", "stm32-gpio", "mcusim.periph.stm32.gpio:Gpio", _P(port=_PORT),
          "STM32 GPIO port (16 pins P<port>0..15)", needs=("base",)),
-    Kind("peripheral", "lpc43xx-adc", "periph.lpc43xx.adc:Adc", _P(
+    Kind("peripheral", "lpc43xx-adc", "mcusim.periph.lpc43xx.adc:Adc", _P(
         irq=_IRQ, inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
         vref=_num(3.3, min=2.7, max=3.6, unit="V", doc="VDDA"),
         strict=Param(False, doc="specification limits are errors")),
         "LPC4337 10-bit ADC", needs=("base", "clock")),
-    Kind("peripheral", "lpc43xx-i2c", "periph.lpc43xx.i2c:I2c", _P(irq=_IRQ, bus=_BUSNAME),
+    Kind("peripheral", "lpc43xx-i2c", "mcusim.periph.lpc43xx.i2c:I2c", _P(irq=_IRQ, bus=_BUSNAME),
          "LPC4337 I2C master", needs=("base", "clock")),
-    Kind("peripheral", "lpc43xx-gpio", "periph.lpc43xx.gpio:Gpio", _P(
+    Kind("peripheral", "lpc43xx-gpio", "mcusim.periph.lpc43xx.gpio:Gpio", _P(
         ports=Param(8, min=1, max=8), pins_per_port=Param(32, min=1, max=32)),
         "LPC4337 GPIO port block (pins GPIO<port>_<n>)", needs=("base",)),
-    Kind("peripheral", "lpc43xx-usart", "periph.lpc43xx.uart:Usart", _P(irq=_IRQ),
+    Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=_IRQ),
          "LPC4337 USART", needs=("base", "clock")),
-    Kind("peripheral", "avr-cpu", "periph.avr.cpu:AvrCpuRegs", {}, "ATmega328P SREG, SP"),
-    Kind("peripheral", "avr-port", "periph.avr.port:AvrPort", _P(
+    Kind("peripheral", "avr-cpu", "mcusim.periph.avr.cpu:AvrCpuRegs", {}, "ATmega328P SREG, SP"),
+    Kind("peripheral", "avr-port", "mcusim.periph.avr.port:AvrPort", _P(
         port=Param("B", choices=("B", "C", "D")), pins=Param(8, min=1, max=8, doc="pins bonded out")),
         "ATmega328P I/O port (PINx, DDRx, PORTx)", needs=("base",)),
-    Kind("peripheral", "avr-extint", "periph.avr.extint:ExtInt", _P(
+    Kind("peripheral", "avr-extint", "mcusim.periph.avr.extint:ExtInt", _P(
         pins=Param(("PD2", "PD3"), length=2, items=Param("PD2"), doc="INT0, INT1 pins"),
         vectors=Param((1, 2), length=2, items=_VEC)),
         "ATmega328P external interrupts INT0/INT1", needs=("clock",)),
-    Kind("peripheral", "avr-timer0", "periph.avr.timer0:Timer0", _P(
+    Kind("peripheral", "avr-timer0", "mcusim.periph.avr.timer0:Timer0", _P(
         vectors=_Table(("compa", "compb", "ovf"), _VEC)), "ATmega328P Timer/Counter0", needs=("clock",)),
-    Kind("peripheral", "avr-timer1", "periph.avr.timer1:Timer1", _P(
+    Kind("peripheral", "avr-timer1", "mcusim.periph.avr.timer1:Timer1", _P(
         vectors=_Table(("capt", "compa", "compb", "ovf"), _VEC)), "ATmega328P Timer/Counter1",
         needs=("clock",)),
-    Kind("peripheral", "avr-adc", "periph.avr.adc:Adc", _P(
+    Kind("peripheral", "avr-adc", "mcusim.periph.avr.adc:Adc", _P(
         inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
         avcc=_num(5.0, min=1.8, max=5.5, unit="V"), vector=_VEC,
         aref=_num(5.0, above=0, max=5.5, unit="V", doc="external reference on AREF")),
         "ATmega328P 10-bit ADC", needs=("clock",)),
-    Kind("peripheral", "avr-twi", "periph.avr.twi:Twi", _P(bus=_BUSNAME, vector=_VEC),
+    Kind("peripheral", "avr-twi", "mcusim.periph.avr.twi:Twi", _P(bus=_BUSNAME, vector=_VEC),
          "ATmega328P TWI (I2C slave)", needs=("clock",)),
 )}
 
@@ -278,11 +278,11 @@ PARTS = {k.name: k for k in (
 
 # --- firmware ---------------------------------------------------------------------------------------
 FIRMWARE = {k.name: k for k in (
-    Kind("firmware", "controlmotor", "firmware.controlmotor.app:ControlMotorFirmware", {},
+    Kind("firmware", "controlmotor", "mcusim.fw.controlmotor.app:ControlMotorFirmware", {},
          "the ControlMotorROS thesis firmware (STM32F746)"),
-    Kind("firmware", "openrover-mcm", "firmware.openrover_mcm.sketch:OpenRoverMcm", {},
+    Kind("firmware", "openrover-mcm", "mcusim.fw.openrover_mcm.sketch:OpenRoverMcm", {},
          "the OpenRover motor-controller module sketch (ATmega328P)"),
-    Kind("firmware", "openrover-rcm", "firmware.openrover_rcm.app:RoverControl", {},
+    Kind("firmware", "openrover-rcm", "mcusim.fw.openrover_rcm.app:RoverControl", {},
          "the OpenRover robot controller rover_control (LPC4337)"),
 )}
 

@@ -188,7 +188,7 @@ class VcdTrace:
             mcu.nvic.line_listeners.append(on_line)
         # the TXD line of each LPC43xx USART, drawn bit by bit (mcusim.tracebus)
         try:
-            from periph.lpc43xx.uart import Usart
+            from mcusim.periph.lpc43xx.uart import Usart
         except ImportError:     # pragma: no cover (the periph package ships with mcusim)
             return
         from .tracebus import UartWaveform

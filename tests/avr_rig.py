@@ -7,7 +7,7 @@ from mcusim.kernel import Kernel
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus
 from mcusim.time import TimeBase
-from periph.avr.cpu import AvrCpuRegs
+from mcusim.periph.avr.cpu import AvrCpuRegs
 
 
 def bare_atmega328p(cpu: bool = False) -> Mcu:

@@ -3,8 +3,8 @@
 import itertools
 
 import mcusim
-from firmware.arduino.core import OUTPUT, ArduinoCore
-from firmware.arduino.timerone import TimerOne
+from mcusim.fw.arduino.core import OUTPUT, ArduinoCore
+from mcusim.fw.arduino.timerone import TimerOne
 
 
 def board():

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.signals import Net
-from periph.avr.timer1 import Timer1
+from mcusim.periph.avr.timer1 import Timer1
 
 TIFR1, TIMSK1, TCCR1A, TCCR1B, TCCR1C = 0x36, 0x6F, 0x80, 0x81, 0x82
 TCNT1, ICR1, OCR1A, OCR1B = 0x84, 0x86, 0x88, 0x8A

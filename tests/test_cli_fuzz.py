@@ -132,10 +132,10 @@ def test_generated_scenario_files_get_one_clean_answer(data, board):
 # --- generated board files: a shipped profile with one line changed ------------------------------------
 def _lines(board):
     from importlib.resources import files
-    return (files("boards") / f"{board}.toml").read_text().splitlines()
+    return (files("mcusim.boards") / f"{board}.toml").read_text().splitlines()
 
 
-_profile_values = st.sampled_from(['"periph.stm32.tim:Tim"', '"os:system"', "0xFFFFFFFFF", "-1", "99999", '"1Hz"',
+_profile_values = st.sampled_from(['"mcusim.periph.stm32.tim:Tim"', '"os:system"', "0xFFFFFFFFF", "-1", "99999", '"1Hz"',
                                   '"0MHz"', '"216.5MHz"', "[1, 2]", '"stm32-gpio"', '"avr-twi"', '"l6206"'])
 
 

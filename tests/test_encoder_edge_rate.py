@@ -7,8 +7,8 @@ pile up, a flag that is already pending absorbs the next edge on its pin, and co
 """
 
 import mcusim
-from firmware.arduino.core import ArduinoCore
-from firmware.arduino.encoder import Encoder
+from mcusim.fw.arduino.core import ArduinoCore
+from mcusim.fw.arduino.encoder import Encoder
 
 QUAD = [(0, 0), (0, 1), (1, 1), (1, 0)]  # (pin1, pin2): pin2 leading counts positive (§3)
 

@@ -12,7 +12,7 @@ from lpc_rig import CORE_HZ, bare_lpc4337
 
 from mcusim.errors import BusFault, McusimError, UnsupportedConfiguration
 from mcusim.signals import AnalogNet
-from periph.lpc43xx.adc import Adc, AdcClockWarning
+from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning
 
 ADC0, ADC1 = 0x400E3000, 0x400E4000
 CR, GDR, INTEN, STAT = 0x000, 0x004, 0x00C, 0x030

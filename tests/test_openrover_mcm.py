@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import mcusim
-from firmware.openrover_mcm import protocol as P
-from firmware.openrover_mcm.sketch import counts_to_rpm, rpm_to_counts
+from mcusim.fw.openrover_mcm import protocol as P
+from mcusim.fw.openrover_mcm.sketch import counts_to_rpm, rpm_to_counts
 from mcusim.i2c import I2cMaster
 
 ADDR = P.DEFAULT_ADDRESS

@@ -19,7 +19,7 @@ from test_stm32_tim import (
 from tim_oracle import Rig, TimOracle
 
 from mcusim.kernel import PRIO_CPU
-from periph.stm32.tim_input import RESYNC_CYCLES, filter_timing
+from mcusim.periph.stm32.tim_input import RESYNC_CYCLES, filter_timing
 
 SETTINGS = settings(max_examples=int(__import__("os").environ.get("TIM_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -127,7 +127,7 @@ class Rig:
         from mcusim.mcu import Mcu
         from mcusim.registers import Bus
         from mcusim.time import TimeBase
-        from periph.stm32.tim import Tim
+        from mcusim.periph.stm32.tim import Tim
 
         self.tb = TimeBase([216_000_000])
         self.kernel = Kernel(self.tb)

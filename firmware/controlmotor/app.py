@@ -16,21 +16,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware.controlmotor import VARIANTS
-from firmware.controlmotor.encoder import (
+from mcusim.fw.controlmotor import VARIANTS
+from mcusim.fw.controlmotor.encoder import (
     Encoder,
     encoder_get_position,
     encoder_set_reset,
     encoder_timn_start,
     encoder_update_callback,
 )
-from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
-from firmware.controlmotor.pwm import Pwm, pwm_enable, pwm_timn_set_duty, pwm_timn_start
-from firmware.stm32hal import cortex
-from firmware.stm32hal import gpio as hal_gpio
-from firmware.stm32hal import tim as hal_tim
-from firmware.stm32hal.rcc import SystemCoreClock
-from firmware.stm32hal.regs import Stm32f7
+from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
+from mcusim.fw.controlmotor.pwm import Pwm, pwm_enable, pwm_timn_set_duty, pwm_timn_start
+from mcusim.fw.stm32hal import cortex
+from mcusim.fw.stm32hal import gpio as hal_gpio
+from mcusim.fw.stm32hal import tim as hal_tim
+from mcusim.fw.stm32hal.rcc import SystemCoreClock
+from mcusim.fw.stm32hal.regs import Stm32f7
 from mcusim.errors import ConfigError
 from mcusim.params import Param, firmware_params
 

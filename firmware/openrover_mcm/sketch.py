@@ -3,7 +3,7 @@
 Hardware: IBT-2 (two BTS7960 half-bridges) with RPWM on D9 and LPWM on D10 driven by TimerOne at
 20 kHz; R_EN/L_EN tied high; the current-sense outputs R_IS on A0 and L_IS on A1; the motor's AMT10
 encoder (512 PPR, 2048 counts per motor turn) on D2/D3 read by the PJRC Encoder library; I2C slave
-on A4/A5 (Wire) with the register map of :mod:`firmware.openrover_mcm.protocol`.
+on A4/A5 (Wire) with the register map of :mod:`mcusim.fw.openrover_mcm.protocol`.
 
 loop(): every SAMPLE_MS (PID_v1's sample time) the velocity in counts/s is measured from the
 encoder, PID_v1 computes a duty in [-1024, 1024] (TimerOne units), the sign picks RPWM or LPWM;
@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import struct
 
-from firmware.arduino.core import A0, A1, ArduinoCore
-from firmware.arduino.encoder import Encoder
-from firmware.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
-from firmware.arduino.timerone import TimerOne
-from firmware.arduino.wire import TwoWire
-from firmware.openrover_mcm import protocol as P
+from mcusim.fw.arduino.core import A0, A1, ArduinoCore
+from mcusim.fw.arduino.encoder import Encoder
+from mcusim.fw.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
+from mcusim.fw.arduino.timerone import TimerOne
+from mcusim.fw.arduino.wire import TwoWire
+from mcusim.fw.openrover_mcm import protocol as P
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
 from mcusim.params import Param, firmware_params

@@ -41,12 +41,12 @@ from __future__ import annotations
 
 import math
 
-from firmware.nuttx.lpc43_i2c import lpc43_i2c_init
-from firmware.nuttx.lpc43_serial import Lpc43SerialDev
-from firmware.openrover_mcm import protocol as P
-from firmware.openrover_rcm.board import CiaaBoard
-from firmware.openrover_rcm.kinematics import make_layout, saturate
-from firmware.openrover_rcm.odometry import Odometry, Unwrap16
+from mcusim.fw.nuttx.lpc43_i2c import lpc43_i2c_init
+from mcusim.fw.nuttx.lpc43_serial import Lpc43SerialDev
+from mcusim.fw.openrover_mcm import protocol as P
+from mcusim.fw.openrover_rcm.board import CiaaBoard
+from mcusim.fw.openrover_rcm.kinematics import make_layout, saturate
+from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
 from mcusim.params import Param, firmware_params

@@ -11,7 +11,14 @@ from ..errors import ConfigError, McusimError
 from .model import Scenario
 from .source import _Lines
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent.parent / "scenarios"
+def _shipped_dir() -> Path:
+    """The folder of the shipped scenarios: ``scenarios/`` of the repository, installed as the
+    package ``mcusim.scenarios`` (an editable install maps it back to the repository's folder)."""
+    from importlib.resources import files
+    return Path(str(files("mcusim.scenarios")))
+
+
+SCENARIO_DIR = _shipped_dir()
 
 
 def scenario_names() -> list[str]:
