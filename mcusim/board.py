@@ -363,6 +363,12 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             if isinstance(exc, BUILD_ERRORS):
                 raise ConfigError(f"{where}: firmware {kind.name}: {exc}") from None
             raise
+        missing = [m for m in ("publish", "topic") if not callable(getattr(firmware, m, None))]
+        if missing:
+            for task in mcu.rtos.tasks:
+                task.coro.close()
+            raise ConfigError(f"{where}: firmware kind {kind.name!r} ({kind.origin}) is not a firmware: "
+                              f"it has no {' or '.join(missing)}()")
     elif firmware_params:
         raise ConfigError(f"firmware parameters {', '.join(firmware_params)} given, but the firmware is off")
     return {"timebase": timebase, "kernel": kernel, "mcu": mcu, "parts": parts, "firmware": firmware,

@@ -173,3 +173,14 @@ def test_the_walk_through_of_the_doc(tmp_path, capsys, monkeypatch):
     sim = mcusim.load("my-board.toml", firmware=False)
     assert sim.part("encoder1").counts_per_rev == 48 and sim.part("motor1").params.load_inertia == 2e-5
     sim.discard()
+
+
+def test_a_registered_firmware_that_is_no_firmware_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(kinds, "_registered", {})
+    kinds.register("firmware", "not-a-firmware", _Flywheel)         # takes (kernel, name, motor)
+    kinds.register("firmware", "silent", type("Silent", (), {"__init__": lambda self, mcu: None}))
+    p = tmp_path / "b.toml"
+    for kind, needle in (("not-a-firmware", "firmware not-a-firmware:"), ("silent", "is not a firmware")):
+        p.write_text(shipped_text("nucleo-f746").replace('kind = "controlmotor"', f'kind = "{kind}"'))
+        err = _err(capsys, ["run", str(p), "--duration", "1ms", "--set", "motor1.R=2"])
+        assert needle in err, err
