@@ -2,9 +2,10 @@
 
 import itertools
 
-import mcusim
 from mcusim.fw.arduino.core import OUTPUT, ArduinoCore
 from mcusim.fw.arduino.timerone import TimerOne
+
+import mcusim
 
 
 def board():

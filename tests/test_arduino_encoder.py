@@ -8,7 +8,6 @@ import inspect
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mcusim.fw.arduino import encoder as enc_mod
 from mcusim.fw.arduino.core_api import CHANGE, INPUT_PULLUP, NOT_AN_INTERRUPT, ArduinoCore
 from mcusim.fw.arduino.encoder import ISR_CYCLES, Encoder, EncoderInternalState

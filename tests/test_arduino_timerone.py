@@ -7,7 +7,6 @@ latches the high byte into TEMP.
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mcusim.fw.arduino.core_api import OUTPUT, DataBus
 from mcusim.fw.arduino.timerone import TimerOne
 

@@ -4,11 +4,11 @@ import math
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import mcusim
 from mcusim.fw.controlmotor.encoder import encoder_get_position, encoder_set_reset, encoder_timn_stop
 from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B
 from mcusim.fw.controlmotor.pwm import pwm_timn_get_duty, pwm_timn_set_duty, pwm_timn_stop
+
+import mcusim
 
 SIM = mcusim.load("nucleo-f746")
 FW = SIM.firmware

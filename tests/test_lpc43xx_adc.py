@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from lpc_rig import CORE_HZ, bare_lpc4337
+from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning
 
 from mcusim.errors import BusFault, McusimError, UnsupportedConfiguration
 from mcusim.signals import AnalogNet
-from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning
 
 ADC0, ADC1 = 0x400E3000, 0x400E4000
 CR, GDR, INTEN, STAT = 0x000, 0x004, 0x00C, 0x030

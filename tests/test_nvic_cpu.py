@@ -1,6 +1,7 @@
 """Cortex-M NVIC and the firmware runtime: entry latency, priorities, preemption, cycle costs."""
 
 import pytest
+from mcusim.periph.cortexm.systick import SysTick
 
 from mcusim.errors import McusimError
 from mcusim.firmware import Cpu, Rtos
@@ -9,7 +10,6 @@ from mcusim.kernel import Kernel
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus
 from mcusim.time import TimeBase
-from mcusim.periph.cortexm.systick import SysTick
 
 NVIC = 0xE000E100
 

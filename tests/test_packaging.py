@@ -38,7 +38,7 @@ def test_every_package_folder_is_listed():
 
 
 def test_no_module_imports_the_repositorys_folders_by_their_top_level_names():
-    pattern = re.compile(r"^\s*(from|import)\s+(periph|firmware|boards|scenarios)\b", re.M)
+    pattern = re.compile(r"^\s*(from|import)\s+(periph|firmware|boards|scenarios)\b", re.MULTILINE)
     bad = []
     for folder in ("mcusim", "periph", "firmware", "tests", "benchmarks"):
         for path in (ROOT / folder).rglob("*.py"):

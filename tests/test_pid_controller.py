@@ -11,7 +11,6 @@ import math
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
 
 T = 0.005

@@ -17,7 +17,6 @@ import sys
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mcusim.fw.openrover_rcm.kinematics import (
     ELEMENTALL_COUNTS_PER_WHEEL_REV,
     ELEMENTALL_WHEEL_RADIUS,

@@ -2,11 +2,11 @@
 pinned choices. Sheet: ST RM0385 (project timer notes)."""
 
 import pytest
+from mcusim.periph.stm32.tim_input import RESYNC_CYCLES
 from tim_oracle import Rig
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.kernel import PRIO_CPU
-from mcusim.periph.stm32.tim_input import RESYNC_CYCLES
 
 CEN, UDIS, URS, OPM, DIR, ARPE, UIFREMAP = 1, 2, 4, 8, 16, 128, 1 << 11
 PWM1, PWM2 = 0x60, 0x70

@@ -122,12 +122,13 @@ class Rig:
     """A Mcu with one timer on its bus, at ``mhz`` timer clock over a 216 MHz base."""
 
     def __init__(self, name="TIM1", mhz=216, arr_reset=0):
+        from mcusim.periph.stm32.tim import Tim
+
         from mcusim.irq import Nvic
         from mcusim.kernel import Kernel
         from mcusim.mcu import Mcu
         from mcusim.registers import Bus
         from mcusim.time import TimeBase
-        from mcusim.periph.stm32.tim import Tim
 
         self.tb = TimeBase([216_000_000])
         self.kernel = Kernel(self.tb)

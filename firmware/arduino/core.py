@@ -28,6 +28,7 @@ from mcusim.fw.arduino.core_api import (  # noqa: F401
     OUTPUT,
     RISING,
 )
+
 from mcusim.errors import ConfigError
 
 # data-space addresses (iom328p.h)

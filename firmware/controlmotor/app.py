@@ -31,6 +31,7 @@ from mcusim.fw.stm32hal import gpio as hal_gpio
 from mcusim.fw.stm32hal import tim as hal_tim
 from mcusim.fw.stm32hal.rcc import SystemCoreClock
 from mcusim.fw.stm32hal.regs import Stm32f7
+
 from mcusim.errors import ConfigError
 from mcusim.params import Param, firmware_params
 

@@ -27,6 +27,7 @@ from mcusim.fw.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
 from mcusim.fw.arduino.timerone import TimerOne
 from mcusim.fw.arduino.wire import TwoWire
 from mcusim.fw.openrover_mcm import protocol as P
+
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
 from mcusim.params import Param, firmware_params

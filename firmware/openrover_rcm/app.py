@@ -47,6 +47,7 @@ from mcusim.fw.openrover_mcm import protocol as P
 from mcusim.fw.openrover_rcm.board import CiaaBoard
 from mcusim.fw.openrover_rcm.kinematics import make_layout, saturate
 from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16
+
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
 from mcusim.params import Param, firmware_params

@@ -11,6 +11,7 @@ from ..errors import ConfigError, McusimError
 from .model import Scenario
 from .source import _Lines
 
+
 def _shipped_dir() -> Path:
     """The folder of the shipped scenarios: ``scenarios/`` of the repository, installed as the
     package ``mcusim.scenarios`` (an editable install maps it back to the repository's folder)."""
