@@ -1,70 +1,64 @@
 """Board profiles: read a TOML profile, apply ``--set`` overrides, build the system.
 
-The kernel knows no vendor: peripheral and firmware classes are named in the profile as
-``"module:Class"`` and imported here by name; plant parts by ``kind``.
+A profile is data: it names peripheral models, plant parts and firmware by *kind*, looked up in
+the registry of :mod:`mcusim.kinds` (the project's own kinds and those registered by an entry
+point), never a Python object to import. The whole format is in ``docs/boards.md``;
+:mod:`mcusim.schema` checks a profile before anything is built.
 """
 
 from __future__ import annotations
 
-import importlib
 import importlib.resources
-import tomllib
 from fractions import Fraction
 from pathlib import Path
 
-from .errors import ConfigError
+from . import kinds
+from .errors import ConfigError, McusimError
 from .firmware import Cpu, Rtos
 from .irq import AvrInterrupts, Nvic, Scb
 from .kernel import Kernel
 from .mcu import Mcu
+from .params import _show
 from .registers import Bus
+from .schema import check_params, check_profile, read_profile_text
 from .time import TimeBase, parse_frequency
 
-PART_KINDS = {
-    "dcmotor": "mcusim.plant.dcmotor:DcMotor",
-    "l6206": "mcusim.plant.l6206:L6206Bridge",
-    "bts7960": "mcusim.plant.bts7960:Bts7960Bridge",
-    "encoder": "mcusim.plant.encoder:QuadratureEncoder",
-    "battery": "mcusim.plant.parts:BatteryPart",
-    "divider": "mcusim.plant.parts:DividerPart",
-    "rover-body": "mcusim.plant.parts:RoverBodyPart",
-    "estop": "mcusim.plant.parts:EStopPart",
-}
-# digital terminals wired through [pins]: (required, optional)
-PART_TERMINALS = {"l6206": (("IN1", "IN2", "EN"), ()), "bts7960": (("RPWM", "LPWM"), ("R_EN", "L_EN")),
-                  "encoder": (("A", "B"), ()), "dcmotor": ((), ()), "battery": ((), ()), "divider": ((), ()),
-                  "rover-body": ((), ()), "estop": (("ENABLE_IN",), ("ENABLE_OUT", "SENSE"))}
-# part parameters that name other parts (resolved to the part objects): one name or a list
-PART_REFS = {"motor": "motor", "source": "source", "loads": "loads", "motors": "motors"}
+# the errors a model's constructor raises for a value it cannot take: reported as one line naming
+# the peripheral, part or firmware (the schema catches the common mistakes first, with their line)
+BUILD_ERRORS = (TypeError, ValueError, ArithmeticError, LookupError, AttributeError)
 
 
 def board_names() -> list[str]:
-    files = importlib.resources.files("boards")
+    files = importlib.resources.files("mcusim.boards")
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
 
 
+def shipped_text(board: str) -> str:
+    """The text of a shipped profile (``mcusim boards --show``)."""
+    if board not in board_names():
+        raise ConfigError(f"unknown board {_show(str(board))}; known boards: {', '.join(board_names())}")
+    return (importlib.resources.files("mcusim.boards") / f"{board}.toml").read_text(encoding="utf-8")
+
+
 def read_profile(board: str) -> tuple[dict, str]:
-    """The parsed profile of a board name (``nucleo-f746``) or a path to a .toml file."""
+    """The parsed and checked profile of a board name (``nucleo-f746``) or a path to a .toml
+    file. Any mistake raises ConfigError ``<file>:<line>: <problem>``."""
+    if not isinstance(board, (str, Path)) or not str(board).strip():
+        raise ConfigError(f"no board given; known boards: {', '.join(board_names())}")
     path = Path(board)
-    if path.suffix == ".toml" and path.exists():
-        text, where = path.read_text(), str(path)
+    if path.suffix == ".toml" or path.exists() or "/" in str(board):
+        try:
+            data, where = path.read_bytes(), str(path)
+        except OSError as exc:
+            raise ConfigError(f"cannot read board profile {str(board)!r}: {exc.strerror or exc}") from None
     else:
-        res = importlib.resources.files("boards") / f"{board}.toml"
+        res = importlib.resources.files("mcusim.boards") / f"{board}.toml"
         if not res.is_file():
-            raise ConfigError(f"unknown board {board!r}; known boards: {', '.join(board_names())}")
-        text, where = res.read_text(), f"boards/{board}.toml"
-    try:
-        return tomllib.loads(text), where
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{where}: {exc}") from None
-
-
-def _import(spec: str, where: str):
-    try:
-        module, _, name = spec.partition(":")
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError, ValueError) as exc:
-        raise ConfigError(f"{where}: cannot load {spec!r}: {exc}") from None
+            raise ConfigError(f"unknown board {_show(str(board))}; known boards: {', '.join(board_names())}")
+        data, where = res.read_bytes(), f"boards/{board}.toml"
+    profile = read_profile_text(data, where)
+    check_profile(profile)
+    return profile, where
 
 
 def parse_value(text: str):
@@ -83,13 +77,33 @@ def parse_value(text: str):
 
 
 def _firmware_inputs(profile: dict) -> set:
-    """The names in the firmware module's ``HOST_INPUTS`` (inputs a host can give it)."""
-    spec = profile.get("firmware", {}).get("class", "")
-    try:
-        module = importlib.import_module(spec.partition(":")[0]) if spec else None
-    except ImportError:
+    """The names in the firmware's ``HOST_INPUTS`` (inputs a host can give it)."""
+    fw = profile.get("firmware")
+    if not isinstance(fw, dict) or "kind" not in fw:
         return set()
-    return set(getattr(module, "HOST_INPUTS", {}))
+    cls = kinds.lookup("firmware", fw["kind"], "[firmware]").load()
+    return set(getattr(cls, "HOST_INPUTS", {}))
+
+
+def is_input_key(profile: dict, key: str) -> bool:
+    """Whether a ``--set`` key is a message or input for a firmware (``/motor1/set_pos``,
+    ``velocity``, ``cmd_vel.linear``, ``mcm1.velocity``), not a parameter (``motor1.R``,
+    ``firmware.kp``, ``mcm3.present``)."""
+    head, dot, rest = key.partition(".")
+    if "system" in profile:
+        members = {m.get("name"): m for m in profile.get("member", [])}
+        if dot and head in members:
+            if rest == "present":
+                return False
+            try:
+                return is_input_key(read_profile(members[head]["board"])[0], rest)
+            except ConfigError:
+                return False
+        parts = {p.get("name") for p in profile.get("part", [])}
+        return not (dot and (head == "firmware" or head in parts))
+    if key.startswith("/") or not dot:
+        return True
+    return key in _firmware_inputs(profile)
 
 
 def split_overrides(profile: dict, overrides: dict) -> tuple[dict, dict, list]:
@@ -145,10 +159,28 @@ def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
     return out
 
 
+def _part_params(kind, spec: dict, overrides: dict, name: str, where: str) -> dict:
+    """A part's parameters: the profile's (checked when it was read) and the ``--set`` ones."""
+    class _Where:          # check_params wants a profile to blame; here the message is enough
+        @staticmethod
+        def err(msg, *path):
+            return ConfigError(msg)
+    params = check_params(_Where, kind, spec, ("name", "kind") + kind.refs, f"{where}: part {name}", None, None)
+    for key, value in overrides.items():
+        if key in kind.refs:
+            raise ConfigError(f"--set {name}.{key}: names other parts; it is set in the profile only")
+        if key not in kind.params and not kind.open_params:
+            raise ConfigError(f"--set {name}.{key}: {name} ({kind.name}) has no parameter {key!r} "
+                              f"(known: {', '.join(sorted(kind.params))})")
+        params[key] = kind.params[key].check(value, f"{name}.{key}") if key in kind.params else value
+    kind.check_rules(params, f"{where}: part {name}" if not overrides else f"part {name}")
+    return params
+
+
 def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: str,
                 lookup=None) -> dict:
     """Instantiate plant parts in declaration order. ``wiring[part][TERMINAL]`` is the Net of each
-    digital terminal; parameters in :data:`PART_REFS` name other parts, resolved among the parts
+    digital terminal; parameters in the kind's ``refs`` name other parts, resolved among the parts
     built so far or by ``lookup(name)`` (a system's parts of its boards: ``"mcm1.motor"``)."""
     parts: dict = {}
 
@@ -161,21 +193,19 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
         return found
 
     for spec in specs:
-        name, kind = spec["name"], spec.get("kind")
-        if kind not in PART_KINDS:
-            raise ConfigError(f"{where}: part {name}: unknown kind {kind!r} (kinds: {', '.join(PART_KINDS)})")
-        cls = _import(PART_KINDS[kind], f"{where}: part {name}")
-        params = {k: v for k, v in spec.items() if k not in ("name", "kind") and k not in PART_REFS}
-        params.update(part_overrides.get(name, {}))
+        name = spec["name"]
+        kind = kinds.lookup("part", spec.get("kind"), f"{where}: part {name}")
+        cls = kind.load()
+        params = _part_params(kind, spec, part_overrides.get(name, {}), name, where)
         args = {}
-        for key in PART_REFS:
+        for key in kind.refs:
             if key in spec:
                 v = spec[key]
                 args[key] = [ref(x, name) for x in v] if isinstance(v, list) else ref(v, name)
-        required, optional = PART_TERMINALS[kind]
+        required, optional = kind.terminals
         unknown = set(wiring.get(name, {})) - set(required + optional)
         if unknown:
-            raise ConfigError(f"{where}: part {name} ({kind}) has no terminal {', '.join(sorted(unknown))}; "
+            raise ConfigError(f"{where}: part {name} ({kind.name}) has no terminal {', '.join(sorted(unknown))}; "
                               f"terminals: {', '.join(required + optional) or 'none'}")
         for term in required + optional:
             net = wiring.get(name, {}).get(term)
@@ -186,12 +216,25 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
             args[term.lower()] = net
         try:
             parts[name] = cls(kernel, name=name, **args, **params)
-        except TypeError as exc:
-            raise ConfigError(f"{where}: part {name}: {exc}") from None
+        except McusimError:
+            raise
+        except BUILD_ERRORS as exc:
+            raise ConfigError(f"{where}: part {name} ({kind.name}): {exc}") from None
     for part in wiring:
         if part not in parts:
             raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
     return parts
+
+
+def _check_irq_numbers(spec: dict, limit: int, what: str, where: str) -> None:
+    """Interrupt numbers a peripheral is given must exist on the core (NVIC lines, AVR vectors)."""
+    for key in ("irq", "irqs", "vector", "vectors"):
+        v = spec.get(key)
+        values = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
+        for n in values:
+            if isinstance(n, int) and not 0 <= n < limit:
+                raise ConfigError(f"{where}: peripheral {spec['name']}: {key} {n} is not one of the "
+                                  f"core's {limit} {what}")
 
 
 def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
@@ -226,11 +269,16 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         bus.attach(0xE000E100, irq)
         bus.attach(0xE000ED00, Scb(irq))
     mcu.nvic = mcu.irq = irq
+    limit, what = (core.get("vectors", 26), "vectors") if avr else (core.get("nvic_irqs", 98), "NVIC lines")
     for spec in profile.get("peripheral", []):
-        cls = _import(spec["class"], f"{where}: peripheral {spec.get('name')}")
-        kwargs = {k: v for k, v in spec.items() if k not in ("name", "class", "base", "clock", "outputs")}
+        pwhere = f"{where}: peripheral {spec.get('name')}"
+        kind = kinds.lookup("peripheral", spec.get("kind"), pwhere)
+        cls = kind.load()
+        _check_irq_numbers(spec, limit, what, where)
+        kwargs = _part_params(kind, {k: v for k, v in spec.items() if k not in ("base", "clock", "outputs")},
+                              {}, spec["name"], where)
         kwargs.update(_resolve_peripheral_refs(spec, mcu, kernel, buses, where))
-        if spec["class"].endswith(":Rcc"):
+        if kind.name == "stm32-rcc":
             kwargs["sysclk_hz"] = sysclk
         if "clock" in spec:
             if spec["clock"] not in mcu.clocks:
@@ -239,13 +287,15 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             kwargs["clock"] = mcu.clocks[spec["clock"]]
         try:
             p = cls(spec["name"], mcu, **kwargs)
-        except TypeError as exc:
-            raise ConfigError(f"{where}: peripheral {spec['name']}: {exc}") from None
-        mcu.periph[spec["name"]] = p
-        if p.BUS_WIDTH == 1:
-            bus.attach_registers(spec.get("base", 0), p)  # AVR: registers scattered in data space
-        else:
-            bus.attach(spec["base"], p)
+            mcu.periph[spec["name"]] = p
+            if p.BUS_WIDTH == 1:
+                bus.attach_registers(spec.get("base", 0), p)  # AVR: registers scattered in data space
+            else:
+                bus.attach(spec["base"], p)
+        except McusimError:
+            raise
+        except BUILD_ERRORS as exc:
+            raise ConfigError(f"{pwhere} ({kind.name}): {exc}") from None
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
@@ -261,10 +311,14 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                           and hasattr(q, "connect_override")), None)
             if owner is None:
                 raise ConfigError(f"{where}: peripheral {spec['name']}: no port owns pin {pin_name}")
-            owner.connect_override(owner.pins.index(net), mcu.periph[spec["name"]].oc[out])
+            oc = getattr(mcu.periph[spec["name"]], "oc", {})
+            if out not in oc:
+                raise ConfigError(f"{where}: peripheral {spec['name']}: no output {out!r} "
+                                  f"(outputs: {', '.join(oc) or 'none'})")
+            owner.connect_override(owner.pins.index(net), oc[out])
 
     if not avr:
-        from periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
+        from mcusim.periph.cortexm.systick import SysTick  # the Cortex-M core's own timer
         hclk = mcu.clocks.get("HCLK", mcu.core_clock)
         ref = timebase.clock("SysTick_ref", hclk.hz / 8) if core.get("systick_ref") == "HCLK/8" else hclk
         systick = SysTick("SysTick", mcu, mcu.core_clock, ref)
@@ -298,10 +352,24 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         fw = profile.get("firmware")
         if fw is None:
             raise ConfigError(f"{where}: the board has no [firmware]")
-        cls = _import(fw["class"], f"{where}: firmware")
-        params = {k: v for k, v in fw.items() if k != "class"}
+        kind = kinds.lookup("firmware", fw.get("kind"), f"{where}: [firmware]")
+        cls = kind.load()
+        params = {k: v for k, v in fw.items() if k != "kind"}
         params.update(firmware_params)
-        firmware = mcu.cpu.run_code(lambda: cls(mcu, **params))
+        try:
+            firmware = mcu.cpu.run_code(lambda: cls(mcu, **params))
+        except BaseException as exc:
+            for task in mcu.rtos.tasks:        # tasks it created will never run: end them quietly
+                task.coro.close()
+            if isinstance(exc, BUILD_ERRORS):
+                raise ConfigError(f"{where}: firmware {kind.name}: {exc}") from None
+            raise
+        missing = [m for m in ("publish", "topic") if not callable(getattr(firmware, m, None))]
+        if missing:
+            for task in mcu.rtos.tasks:
+                task.coro.close()
+            raise ConfigError(f"{where}: firmware kind {kind.name!r} ({kind.origin}) is not a firmware: "
+                              f"it has no {' or '.join(missing)}()")
     elif firmware_params:
         raise ConfigError(f"firmware parameters {', '.join(firmware_params)} given, but the firmware is off")
     return {"timebase": timebase, "kernel": kernel, "mcu": mcu, "parts": parts, "firmware": firmware,

@@ -1,19 +1,27 @@
-"""The ``mcusim`` command line: ``boards``, ``run``, ``bench``."""
+"""The ``mcusim`` command line: ``boards``, ``run``, ``trace``, ``bench``.
+
+Every mistake in what a user gives (arguments, ``--set`` values, scenario and board files, output
+paths) is one line on stderr and exit status 2, found before the run starts; the outputs are
+written so that a run that fails leaves no half-written file posing as complete
+(:mod:`mcusim.outputs`)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
 import json
+import os
 import statistics
 import sys
 import time
+from fractions import Fraction
 
 from .engine import DEFAULT_ENGINE, ENGINES
-
 from .errors import ConfigError, McusimError, TimeError
-from .progress import run_with_progress
-from .time import parse_duration
+from .params import fmt_duration, user_duration
+
+MAX_DURATION = Fraction(600)        # simulated seconds a run may last unless --max-duration says more
+MIN_SAMPLE = Fraction(1, 10**6)     # the finest --sample and --vcd-sample grid: 1 us
 
 EXAMPLES_RUN = """examples:
   mcusim run nucleo-f746
@@ -22,54 +30,88 @@ EXAMPLES_RUN = """examples:
   mcusim run pro-mini --set velocity=10 --duration 3s
   mcusim run elementall --set cmd_vel.linear=0.5 --set cmd_vel.angular=0.2 --duration 10s --summary out.json
   mcusim run elementall --set mcm3.present=false --set battery.count=2
-  mcusim run nucleo-f746 --scenario scenarios/step_response.toml --plot step.png --csv step.csv
+  mcusim run nucleo-f746 --scenario step_response --plot step.png --csv step.csv
   mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
+
+durations take a unit (2s, 500ms, 20us); a run may last at most 600s of simulated time unless
+--max-duration raises the limit. --set topics and inputs (/motor1/set_pos=1.57, velocity=10)
+replace the profile's demo command; parameters (motor1.R=2.5, firmware.kp=300) do not.
 
 exit status: 0 the run completed; 1 the firmware reported a fault, a scenario expectation
 failed, or the simulation hit an error; 2 a usage error (bad board, key, value, unit, scenario
-file or output path)
+or board file, or output path), found before the run starts
 """
 EXAMPLES_TRACE = """examples:
   mcusim trace nucleo-f746 --duration 1ms --filter TIM1
   mcusim trace pro-mini --duration 20ms --set velocity=10 --filter TWI,ADC
   mcusim trace elementall --duration 200ms --filter rcm.I2C0
+
+the register log (JSON lines) goes to stdout, the run's summary to stderr.
+exit status as for `mcusim run`.
 """
 EXAMPLES_BOARDS = """examples:
   mcusim boards
+  mcusim boards --show nucleo-f746
+  mcusim boards --kinds
+
+a profile is described in docs/boards.md; a copy of a shipped one is a good start for a board
+of your own: mcusim boards --show nucleo-f746 > my-board.toml, edit, mcusim run my-board.toml
 """
 EXAMPLES_BENCH = """examples:
   mcusim bench nucleo-f746 --repeat 3
   mcusim bench elementall --duration 1s --json bench.json
+
+the board runs the fixed command of its profile's [bench.set] table; the figures are those of
+the median run. exit status: 0, or 2 for a usage error.
 """
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2, no traceback
-        self.print_usage(sys.stderr)
-        print(f"mcusim: error: {message}", file=sys.stderr)
+        print(f"{self.prog}: error: {message} (see {self.prog} --help)", file=sys.stderr)
         sys.exit(2)
 
 
 def _kv(text: str) -> tuple[str, str]:
     key, eq, value = text.partition("=")
-    if not eq or not key:
-        raise argparse.ArgumentTypeError(f"--set expects KEY=VALUE, got {text!r}")
+    if not eq or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
     return key.strip(), value.strip()
 
 
-def _duration(text: str):
+def _duration(text: str) -> Fraction:
     try:
-        return parse_duration(text)
-    except TimeError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+        return user_duration(text, "")
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).lstrip(" :=")) from None
 
 
-def _run_arguments(r) -> None:
-    r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml")
-    r.add_argument("--duration", type=_duration, default=None,
-                   help="simulated time (default: the scenario's, else 2s)")
+def _sample(text: str) -> Fraction:
+    d = _duration(text)
+    if d < MIN_SAMPLE:
+        raise argparse.ArgumentTypeError(f"{fmt_duration(d)}: the finest sampling grid is 1us")
+    return d
+
+
+def _repeat(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number") from None
+    if not 1 <= n <= 100:
+        raise argparse.ArgumentTypeError(f"{n}: must be from 1 to 100")
+    return n
+
+
+def _common_arguments(r, default_duration: str, what: str) -> None:
+    r.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml profile")
+    r.add_argument("--duration", type=_duration, default=None, metavar="TIME",
+                   help=f"simulated time, with a unit: 2s, 500ms, 20us (default: {what}{default_duration})")
+    r.add_argument("--max-duration", type=_duration, default=MAX_DURATION, metavar="TIME",
+                   help="the longest run allowed, a guard against typos (default 600s)")
     r.add_argument("--set", dest="sets", type=_kv, action="append", default=[], metavar="KEY=VALUE",
-                   help="topic (/motor1/set_pos=1.57) or parameter (motor1.J=6e-6, firmware.variant=thesis)")
+                   help="topic (/motor1/set_pos=1.57), input (velocity=10) or parameter "
+                        "(motor1.J=6e-6, firmware.variant=thesis); repeatable")
     r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
     r.add_argument("--strict", action="store_true",
@@ -81,42 +123,48 @@ def _run_arguments(r) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
-    sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
-    sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
-                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser, metavar="{boards,run,trace,bench}")
+    bo = sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    bo.add_argument("--show", metavar="BOARD", help="print a shipped profile (to copy it into a board of your own)")
+    bo.add_argument("--kinds", action="store_true", help="list the peripheral, part and firmware kinds a "
+                    "profile may name, with their parameters (the project's own and registered ones)")
     r = sub.add_parser("run", help="run a board's firmware against its plant", epilog=EXAMPLES_RUN,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    _run_arguments(r)
+    _common_arguments(r, "2s", "the scenario's, else ")
     r.add_argument("--scenario", metavar="FILE", help="script the run: timed commands, disturbances, "
-                   "faults, expectations (a .toml path or a name in scenarios/)")
+                   "faults, expectations (a .toml path or the name of a shipped scenario: step_response)")
     r.add_argument("--vcd", metavar="FILE", help="write pins, IRQ lines and plant variables as VCD "
                    "(and a GTKWave layout FILE.gtkw)")
-    r.add_argument("--vcd-sample", type=_duration, default=parse_duration("50us"),
-                   help="sampling period of the real-valued plant variables in the VCD (default 50us)")
+    r.add_argument("--vcd-sample", type=_sample, default=Fraction(50, 10**6), metavar="TIME",
+                   help="sampling period of the real-valued plant variables in the VCD (default 50us, at least 1us)")
     r.add_argument("--csv", metavar="FILE", help="write plant and firmware variables on a uniform grid")
-    r.add_argument("--sample", type=_duration, default=parse_duration("1ms"),
-                   help="grid of --csv and --plot (default 1ms)")
+    r.add_argument("--sample", type=_sample, default=Fraction(1, 1000), metavar="TIME",
+                   help="grid of --csv and --plot (default 1ms, at least 1us)")
     r.add_argument("--plot", metavar="FILE.png", help="draw set point and position or velocity, duty and "
-                   "current (and the rover's path) with matplotlib")
+                   "current (and the rover's path); needs matplotlib: pip install 'mcusim[plot]'")
     r.add_argument("--register-log", metavar="FILE", help="every firmware register access as JSON lines "
                    "('-' for stdout)")
-    r.add_argument("--register-log-filter", metavar="NAMES", help="only these peripherals or registers: "
-                   "TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
+    r.add_argument("--register-log-filter", metavar="NAMES", help="with --register-log: only these "
+                   "peripherals or registers: TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
     t = sub.add_parser("trace", help="print the firmware's register accesses (run --register-log -)",
                        epilog=EXAMPLES_TRACE, formatter_class=argparse.RawDescriptionHelpFormatter)
-    _run_arguments(t)
+    _common_arguments(t, "1ms", "")
     t.add_argument("--filter", dest="register_log_filter", metavar="NAMES",
                    help="only these peripherals or registers: TIM3, TIM3.CCR1, GPIO* (comma-separated)")
     t.set_defaults(scenario=None)
     b = sub.add_parser("bench", help="real-time factor of a fixed scenario", epilog=EXAMPLES_BENCH,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    b.add_argument("board", help="profile name (see `mcusim boards`)")
-    b.add_argument("--duration", type=_duration, default=parse_duration("1s"),
-                   help="simulated time of each run (default 1s)")
-    b.add_argument("--repeat", type=int, default=3, help="runs per engine; the median is reported (default 3)")
+    b.add_argument("board", help="profile name (see `mcusim boards`) or path to a .toml profile")
+    b.add_argument("--duration", type=_duration, default=Fraction(1), metavar="TIME",
+                   help="simulated time of each run, with a unit (default 1s)")
+    b.add_argument("--max-duration", type=_duration, default=MAX_DURATION, metavar="TIME",
+                   help="the longest run allowed (default 600s)")
+    b.add_argument("--repeat", type=_repeat, default=3, metavar="N",
+                   help="runs per engine, 1 to 100; the figures are the median run's (default 3)")
     b.add_argument("--engine", choices=ENGINES + ("both",), default=DEFAULT_ENGINE,
-                   help="fast (default), reference, or both in one process with the speedup")
+                   help="fast (default), reference, or both alternately in one process with the speedup")
     b.add_argument("--json", metavar="FILE", help="write the figures as JSON")
     return p
 
@@ -127,17 +175,18 @@ def _print_summary(s: dict) -> None:
           f"({rtf:.3f}x real time), {s['events']:,} events" if rtf else
           f"{s['board']}: simulated {s['simulated_s']:.6f} s, {s['events']:,} events")
     if s["motors"]:
-        print(f"{'motor':<10}{'angle (rad)':>14}{'setpoint (rad)':>16}{'speed (rpm)':>14}{'peak current (A)':>18}")
+        w = max(10, *(len(n) + 2 for n in s["motors"]))
+        print(f"{'motor':<{w}}{'angle (rad)':>14}{'setpoint (rad)':>16}{'speed (rpm)':>14}{'peak current (A)':>18}")
         for name, m in s["motors"].items():
             sp = m.get("setpoint_rad")
-            print(f"{name:<10}{m['angle_rad']:>14.4f}{(f'{sp:.4f}' if sp is not None else '-'):>16}"
+            print(f"{name:<{w}}{m['angle_rad']:>14.4f}{(f'{sp:.4f}' if sp is not None else '-'):>16}"
                   f"{m['speed_rpm']:>14.2f}{m['peak_current_a']:>18.3f}")
     for key, label in (("pose", "true pose"), ("odometry", "odometry")):
         if key in s:
             p = s[key]
             print(f"{label:<10} x = {p['x']:.4f} m, y = {p['y']:.4f} m, yaw = {p['yaw']:.4f} rad")
     if "battery_v" in s:
-        print(f"battery    {s['battery_v']:.3f} V (lowest {s.get('battery_min_v', s['battery_v']):.3f} V, "
+        print(f"{'battery':<10} {s['battery_v']:.3f} V (lowest {s.get('battery_min_v', s['battery_v']):.3f} V, "
               f"state of charge {100 * s.get('battery_soc', 1):.2f} %)")
     for w in s.get("warnings", ()):
         print(f"warning: {w}")
@@ -146,16 +195,28 @@ def _print_summary(s: dict) -> None:
         print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))
 
 
-def _build(args, scenario):
+def _run_sets(args) -> dict:
+    """The ``--set`` pairs of a run without a scenario: the profile's ``[run.set]`` demo command
+    unless the user gives a topic or input of their own (which replace it), then the user's."""
+    from .board import is_input_key, read_profile
+    user = dict(args.sets)
+    if args.no_firmware:
+        return user
+    profile = read_profile(args.board)[0]
+    demo = profile.get("run", {}).get("set", {})
+    if any(is_input_key(profile, k) for k in user):
+        return user
+    return {**demo, **user}
+
+
+def _build(args, scenario, log_target):
     """The simulation a ``run``/``trace`` asks for (a scenario's board and [set], or the profile's
     demo command), with the register log attached from reset when one is asked for."""
     from contextlib import nullcontext
 
-    from .board import read_profile
     from .reglog import RegisterLog, capture_startup, release
     from .sim import load
-    log_to = getattr(args, "register_log", None)
-    with (capture_startup() if log_to is not None else nullcontext()) as startup:
+    with (capture_startup() if log_target is not None else nullcontext()) as startup:
         try:
             if scenario is not None:
                 sim = scenario.build(args.board, dict(args.sets), not args.no_firmware, engine=args.engine)
@@ -164,20 +225,18 @@ def _build(args, scenario):
                         p.strict = True
                 try:
                     scenario.apply(sim)
-                except McusimError:
+                except BaseException:
                     sim.discard()
                     raise
             else:
-                sets = {} if args.no_firmware else dict(read_profile(args.board)[0].get("run", {}).get("set", {}))
-                sets.update(dict(args.sets))  # the profile's demo command, overridden by --set
-                sim = load(args.board, firmware=not args.no_firmware, overrides=sets, strict=args.strict,
+                sim = load(args.board, firmware=not args.no_firmware, overrides=_run_sets(args), strict=args.strict,
                            engine=args.engine)
         except BaseException:
             if startup is not None:
                 release(startup)
             raise
-    if log_to is not None:
-        out = sys.stdout if log_to == "-" else log_to
+    if log_target is not None:
+        out = sys.stdout if log_target == "-" else log_target
         try:
             sim._traces.append(RegisterLog(sim, out, filter=args.register_log_filter, startup=startup))
         except BaseException:
@@ -186,28 +245,102 @@ def _build(args, scenario):
     return sim
 
 
+def _check_run_args(args) -> None:
+    for opt in ("vcd", "csv", "plot", "summary", "register_log", "scenario"):
+        if getattr(args, opt, None) == "":
+            raise ConfigError(f"--{opt.replace('_', '-')}: an empty file name")
+    if getattr(args, "register_log_filter", None) is not None:
+        if args.register_log is None:
+            raise ConfigError("--register-log-filter needs --register-log FILE (or '-' for stdout)")
+        if not args.register_log_filter.replace(",", "").replace(";", "").strip():
+            raise ConfigError("--register-log-filter is empty: name peripherals or registers (TIM3, "
+                              "TIM3.CCR1, GPIO*), or leave it out to log every access")
+    if args.duration is not None and args.duration > args.max_duration:
+        raise ConfigError(f"--duration {fmt_duration(args.duration)}: longer than the limit of "
+                          f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
+
+
+def _outputs(args, scenario):
+    """The run's output files, checked (writable, distinct, not an input, what they need)."""
+    from .outputs import Outputs, check_plot
+    inputs = [scenario.path] if scenario is not None else []
+    if args.board.endswith(".toml"):
+        inputs.append(args.board)
+    outs = Outputs(inputs)
+    files = {}
+    if args.vcd:
+        files["vcd"] = outs.add("--vcd", args.vcd, streamed=True)
+        files["gtkw"] = outs.add("--vcd (its GTKWave layout)", os.path.splitext(args.vcd)[0] + ".gtkw")
+    if args.csv:
+        files["csv"] = outs.add("--csv", args.csv, streamed=True)
+    if args.plot:
+        check_plot(args.plot)
+        files["plot"] = outs.add("--plot", args.plot)
+    if args.register_log is not None and args.register_log != "-":
+        files["register_log"] = outs.add("--register-log", args.register_log, streamed=True)
+    if args.summary:
+        files["summary"] = outs.add("--summary", args.summary)
+    outs.check()
+    return outs, files
+
+
 def cmd_run(args) -> int:
+    from .progress import run_with_progress
     from .scenario import load_scenario
+    _check_run_args(args)
     scenario = load_scenario(args.scenario) if args.scenario else None
-    if scenario is not None and args.duration is not None:
-        scenario.duration = args.duration         # end-of-run checks and reports follow the run
-    duration = args.duration if args.duration is not None else (
-        scenario.duration if scenario is not None else parse_duration("2s"))
-    _check_outputs(args)
-    sim = _build(args, scenario)
-    try:
-        vcd = sim.trace_vcd(args.vcd, sample=args.vcd_sample) if args.vcd else None
-        csv = sim.trace_csv(args.csv, sample=args.sample, keep=bool(args.plot)) if (args.csv or args.plot) else None
-    except BaseException:
-        sim.close()
-        raise
-    try:
-        run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
-    finally:
-        sim.close()
-    s = sim.summary()
     if scenario is not None:
-        s.update(scenario.report_entries())
+        if args.duration is not None:
+            scenario.duration = args.duration         # end-of-run checks and reports follow the run
+        elif scenario.duration > args.max_duration:
+            raise ConfigError(f"{scenario.path}:{scenario.duration_line()}: [scenario] duration "
+                              f"{fmt_duration(scenario.duration)} is longer than the limit of "
+                              f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
+    duration = args.duration if args.duration is not None else (
+        scenario.duration if scenario is not None else args.default_duration)
+    if duration > args.max_duration:
+        raise ConfigError(f"the run's default duration {fmt_duration(duration)} is longer than the limit of "
+                          f"{fmt_duration(args.max_duration)} given by --max-duration; give a --duration")
+    outs, files = _outputs(args, scenario)
+    sim = None
+    try:
+        log = files["register_log"].target if "register_log" in files else args.register_log
+        sim = _build(args, scenario, log)
+        if sim.timebase.ticks(duration, rounding=True) == 0:
+            raise ConfigError(f"--duration {fmt_duration(duration)}: shorter than one base tick "
+                              f"(1/{sim.timebase.base_hz} s)")
+        if files.get("csv") or files.get("plot"):
+            try:
+                sim.timebase.ticks(args.sample)
+            except TimeError:
+                raise ConfigError(f"--sample {fmt_duration(args.sample)}: not a whole number of base ticks "
+                                  f"(1/{sim.timebase.base_hz} s); try 1ms or 100us") from None
+        vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
+        csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
+                             keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)
+        run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
+        sim.close()
+        s = sim.summary()
+        if scenario is not None:
+            s.update(scenario.report_entries())
+        if vcd is not None:
+            from .trace import write_gtkw
+            write_gtkw(vcd, files["gtkw"].target, dumpfile=args.vcd, savefile=args.vcd and
+                       os.path.splitext(args.vcd)[0] + ".gtkw")
+        if args.plot:
+            from .plot import plot_run
+            plot_run(csv, files["plot"].target, title=s["board"])
+        if args.summary:
+            with open(files["summary"].target, "w") as f:
+                json.dump(s, f, indent=2)
+        outs.commit()
+    except BaseException:
+        if sim is not None:
+            with contextlib.suppress(Exception):
+                sim.close()
+        for part in outs.abandon():
+            print(f"mcusim: the run did not complete: partial output left in {part}", file=sys.stderr)
+        raise
     report = sys.stderr if args.register_log == "-" else sys.stdout    # keep stdout for the log
     with contextlib.redirect_stdout(report):
         _print_summary(s)
@@ -215,16 +348,13 @@ def cmd_run(args) -> int:
             for line in scenario.format_results():
                 print(line)
         if vcd is not None:
-            print(f"VCD written to {args.vcd} (GTKWave layout: {vcd.write_gtkw()})")
+            print(f"VCD written to {args.vcd} (GTKWave layout: {files['gtkw'].path})")
         if args.csv:
             print(f"CSV written to {args.csv}")
         if args.plot:
-            from .plot import plot_run
-            plot_run(csv, args.plot, title=s["board"])
             print(f"plot written to {args.plot}")
-    if args.summary:
-        with open(args.summary, "w") as f:
-            json.dump(s, f, indent=2)
+        if args.summary:
+            print(f"summary written to {args.summary}")
     failed = []
     if scenario is not None and scenario.failed:
         failed.append("a scenario expectation failed")
@@ -234,24 +364,6 @@ def cmd_run(args) -> int:
     for why in failed:
         print(f"mcusim: {why}", file=sys.stderr)
     return 1 if failed else 0
-
-
-def _check_outputs(args) -> None:
-    """Output files whose folder does not exist, or a plot format matplotlib cannot write, are
-    usage errors found before the run, not after it."""
-    import os
-    for opt in ("vcd", "csv", "plot", "summary", "register_log"):
-        path = getattr(args, opt, None)
-        if path and path != "-":
-            folder = os.path.dirname(os.path.abspath(path))
-            if not os.path.isdir(folder):
-                raise ConfigError(f"--{opt.replace('_', '-')} {path}: no folder {folder}")
-    if getattr(args, "plot", None):
-        ext = os.path.splitext(args.plot)[1].lower()
-        if ext not in (".png", ".pdf", ".svg", ".jpg", ".jpeg"):
-            raise ConfigError(f"--plot {args.plot}: the file name must end in .png, .pdf, .svg or .jpg")
-    if getattr(args, "sample", None) is not None and args.sample <= 0:
-        raise ConfigError(f"--sample {args.sample}: must be positive")
 
 
 def cmd_trace(args) -> int:
@@ -283,14 +395,18 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE) -
     for _ in range(repeat):
         sim = load(board, overrides=dict(scenario), engine=engine)
         t0 = time.perf_counter()
-        sim.run(seconds=duration)
+        try:
+            sim.run(seconds=duration)
+        finally:
+            sim.close()
         wall = time.perf_counter() - t0
         runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"]))
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
-    return {"board": board, "scenario": ", ".join(f"{k}={v:g}" for k, v in scenario.items()), "simulated_s": sim_s,
-            "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
+    return {"board": board, "scenario": ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}"
+                                                  for k, v in scenario.items()),
+            "simulated_s": sim_s, "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
             "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3]}
 
@@ -304,9 +420,24 @@ def _median_of(runs: list) -> dict:
 
 
 def cmd_bench(args) -> int:
-    if args.repeat < 1:
-        raise ConfigError(f"--repeat {args.repeat}: must be at least 1")
-    r = bench(args.board, args.duration, args.repeat, args.engine)
+    from .outputs import Outputs
+    if args.duration > args.max_duration:
+        raise ConfigError(f"--duration {fmt_duration(args.duration)}: longer than the limit of "
+                          f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
+    if args.json == "":
+        raise ConfigError("--json: an empty file name")
+    outs = Outputs([args.board] if args.board.endswith(".toml") else [])
+    out = outs.add("--json", args.json) if args.json else None
+    outs.check()
+    try:
+        r = bench(args.board, args.duration, args.repeat, args.engine)
+        if out is not None:
+            with open(out.target, "w") as f:
+                json.dump(r, f, indent=2)
+        outs.commit()
+    except BaseException:
+        outs.abandon()
+        raise
     print(f"{r['board']} bench ({r['scenario']}): {r['simulated_s']:.3f} s simulated, "
           f"median wall {r['wall_s_median']:.2f} s (min {r['wall_s_min']:.2f}, max {r['wall_s_max']:.2f}) "
           f"over {r['repeat']} runs")
@@ -317,9 +448,6 @@ def cmd_bench(args) -> int:
     if r["engine"] == "both":
         print(f"reference engine {r['reference_realtime_factor']:.3f}; speedup {r['speedup']:.1f}x "
               f"(fast over reference, measured in this process)")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(r, f, indent=2)
     return 0
 
 
@@ -327,39 +455,78 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"mcusim: warning: {message}", file=sys.stderr)
 
 
+def _short(exc, limit: int = 600) -> str:
+    """An error message on one line of reasonable length (a 5000-character key is cut)."""
+    text = " ".join(str(exc).split("\n"))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _os_error(exc: OSError, args) -> str:
+    if exc.filename:
+        return f"{exc.filename}: {exc.strerror or exc}"
+    outs = [f"{opt} {getattr(args, a)}" for a, opt in (("vcd", "--vcd"), ("csv", "--csv"), ("plot", "--plot"),
+            ("summary", "--summary"), ("register_log", "--register-log"), ("json", "--json"))
+            if getattr(args, a, None)]
+    return f"cannot write {' or '.join(outs) or 'an output'}: {exc.strerror or exc}"
+
+
 def main(argv=None) -> int:
-    args = _parser().parse_args(argv)
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status (also
+    for --help, 0, and for a usage error found by the argument parser, 2)."""
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 2
     import warnings
+    old_showwarning = warnings.showwarning
     warnings.showwarning = _one_line_warning
     try:
         if args.cmd == "boards":
-            from .board import board_names, read_profile
+            from .board import board_names, read_profile, shipped_text
+            if args.show is not None:
+                sys.stdout.write(shipped_text(args.show))
+                return 0
+            if args.kinds:
+                from .kinds import reference
+                for group, title in (("peripheral", "Peripheral kinds"), ("part", "Part kinds"),
+                                     ("firmware", "Firmware kinds")):
+                    print(f"### {title}\n\n{reference(group)}")
+                return 0
             for name in board_names():
                 prof = read_profile(name)[0]
                 print(f"{name:<16}{(prof.get('board') or prof.get('system', {})).get('description', '')}")
             return 0
         if args.cmd == "run":
+            args.default_duration = Fraction(2)
             return cmd_run(args)
         if args.cmd == "bench":
             return cmd_bench(args)
         if args.cmd == "trace":
+            args.default_duration = Fraction(1, 1000)
             return cmd_trace(args)
     except (ConfigError, TimeError) as exc:
-        print(f"mcusim: error: {exc}", file=sys.stderr)
+        print(f"mcusim: error: {_short(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:              # `mcusim trace ... | head`: the reader has gone
-        import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
-    except OSError as exc:                # an output file that cannot be written
-        print(f"mcusim: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+    except OSError as exc:                # an output that cannot be written (a full disk, /dev/full)
+        print(f"mcusim: error: {_os_error(exc, args)}", file=sys.stderr)
         return 2
     except McusimError as exc:
-        print(f"mcusim: error: {exc}", file=sys.stderr)
+        print(f"mcusim: error: {_short(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("mcusim: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:              # a bug of mcusim: one line, the traceback on request
+        if os.environ.get("MCUSIM_DEBUG"):
+            raise
+        print(f"mcusim: internal error: {type(exc).__name__}: {str(exc)[:300]} (this is a bug in mcusim; "
+              "MCUSIM_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return 1
+    finally:
+        warnings.showwarning = old_showwarning
     return 0
 
 

@@ -130,7 +130,7 @@ def firmware_columns(sim) -> list[tuple[str, object]]:
                          (f"{prefix}.fw_position_rad",
                           lambda fw=fw, n=n: fw.topics[f"/motor{n}/get_pos"].value)]
         elif hasattr(fw, "setpoint") and hasattr(fw, "velocity") and hasattr(fw, "duty"):  # OpenRover module
-            from firmware.openrover_mcm.sketch import counts_to_rpm
+            from mcusim.fw.openrover_mcm.sketch import counts_to_rpm
             prefix = motors[0] if motors else f"{mname}.motor"
             cols += [(f"{prefix}.setpoint_rpm", lambda fw=fw: counts_to_rpm(fw.setpoint)),
                      (f"{prefix}.velocity_rpm", lambda fw=fw: counts_to_rpm(fw.velocity)),
@@ -146,6 +146,13 @@ def firmware_columns(sim) -> list[tuple[str, object]]:
     return cols
 
 
+def _fmt_sample(sample) -> str:
+    if isinstance(sample, (Fraction, int, float)):
+        from .params import fmt_duration
+        return fmt_duration(sample)
+    return repr(sample)
+
+
 class CsvTrace:
     """Sample plant and firmware variables every ``sample`` into a CSV file (and/or memory)."""
 
@@ -158,9 +165,9 @@ class CsvTrace:
         try:
             self.period = sim.timebase.ticks(sample)
         except TimeError as exc:   # not a whole number of base ticks, or a bad unit
-            raise ConfigError(f"CSV sample {sample!r}: {exc}") from None
+            raise ConfigError(f"CSV sample {_fmt_sample(sample)}: {exc}") from None
         if self.period <= 0:
-            raise ConfigError(f"CSV sample {sample!r} must be positive")
+            raise ConfigError(f"CSV sample {_fmt_sample(sample)} must be positive")
         self.sample_s = Fraction(self.period, self.base_hz)
         cols = plant_columns(sim) + firmware_columns(sim)
         self.columns = ["time_s"] + [c for c, _ in cols]

@@ -137,6 +137,9 @@ def _check_filter(sim, filter) -> None:
     if filter is None:
         return
     pats = filter.replace(";", ",").split(",") if isinstance(filter, str) else list(filter)
+    if not any(str(x).strip() for x in pats):
+        raise ConfigError("register log filter is empty: name peripherals or registers (TIM3, TIM3.CCR1, "
+                          "GPIO*), or leave the filter out to log every access")
     names = [(m, p.name) for m, member in sim.members.items() for p in _bus_peripherals(member["mcu"])]
     for pat in (str(x).strip() for x in pats):
         could = _matcher([pat])[1] if pat else None

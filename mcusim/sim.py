@@ -38,12 +38,15 @@ class Simulation:
                 if hasattr(p, "strict"):
                     p.strict = True
         try:
+            if topics and self.firmware is None:
+                raise ConfigError(f"--set {', '.join(k for k, _ in topics)}: a message or input for the firmware, "
+                                  "but this simulation runs without firmware (--no-firmware)")
             for member in self.members.values():   # a system's per-board inputs (mcm1.velocity=10)
                 for name, value in member["topics"]:
                     member["firmware"].publish(name, value)
             for name, value in topics:
                 self.publish(name, value)
-        except McusimError:
+        except BaseException:
             self.discard()
             raise
 
@@ -93,7 +96,8 @@ class Simulation:
 
     def _fw(self):
         if self.firmware is None:
-            raise McusimError("this simulation runs without firmware (load(..., firmware=True) for topics)")
+            raise ConfigError("this simulation runs without firmware (--no-firmware, or load(..., firmware=False)): "
+                              "it takes no topics or inputs")
         return self.firmware
 
     def publish(self, topic: str, value) -> None:

@@ -188,7 +188,7 @@ class VcdTrace:
             mcu.nvic.line_listeners.append(on_line)
         # the TXD line of each LPC43xx USART, drawn bit by bit (mcusim.tracebus)
         try:
-            from periph.lpc43xx.uart import Usart
+            from mcusim.periph.lpc43xx.uart import Usart
         except ImportError:     # pragma: no cover (the periph package ships with mcusim)
             return
         from .tracebus import UartWaveform
@@ -233,7 +233,7 @@ class VcdTrace:
 GTKW_ANALOG_ROWS = 3   # extra rows of height under each analog trace
 
 
-def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
+def write_gtkw(vcd_trace: VcdTrace, path=None, *, dumpfile=None, savefile=None) -> str:
     """Write a GTKWave save file (``.gtkw``) for ``vcd_trace``: by default next to the VCD, with
     the same name and the suffix ``.gtkw``. Returns the path written.
 
@@ -242,15 +242,19 @@ def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
     ``interrupts`` with the interrupt lines of every board, ``plant`` with the plant's
     wires (protection flags, the enable line) and reals (motor angle and current, drawn as
     analog steps). Signals are named by their full hierarchical name (``nucleo-f746.irq.TIM3``,
-    ``nucleo-f746.plant.motor1.angle_rad``). The dump file is named by its absolute path.
+    ``nucleo-f746.plant.motor1.angle_rad``). The dump file is named relative to the layout's
+    folder (GTKWave looks there), so the pair can be moved together; ``dumpfile`` and
+    ``savefile`` give the names the files will have if they are written under other names first.
     """
     from vcd.gtkw import GTKWFlag, GTKWSave
 
-    vcd_path = os.path.abspath(vcd_trace.path)
+    vcd_path = os.path.abspath(vcd_trace.path if dumpfile is None else dumpfile)
     if path is None:
         root, _ = os.path.splitext(vcd_path)
         path = root + ".gtkw"
     path = os.fspath(path)
+    final = os.path.abspath(savefile if savefile is not None else path)
+    rel_vcd = os.path.relpath(vcd_path, os.path.dirname(final))
     groups: dict[str, list[tuple[str, str]]] = {}
     for group, name, var_type in vcd_trace.signals:
         groups.setdefault(group, []).append((name, var_type))
@@ -258,8 +262,8 @@ def write_gtkw(vcd_trace: VcdTrace, path=None) -> str:
     with open(path, "w") as f:
         gtkw = GTKWSave(f)
         gtkw.comment(f"mcusim {vcd_trace.sim.board_name}: signals grouped by board, bus, interrupts, plant")
-        gtkw.dumpfile(vcd_path)
-        gtkw.savefile(os.path.abspath(path))
+        gtkw.dumpfile(rel_vcd, abspath=False)
+        gtkw.savefile(os.path.basename(final), abspath=False)
         gtkw.timestart(0)
         board = vcd_trace.sim.board_name
         gtkw.treeopen(board)

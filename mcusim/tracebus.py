@@ -1,6 +1,6 @@
 """Bit-level waveforms of byte-level buses, for the VCD (:class:`mcusim.trace.VcdTrace`).
 
-The I2C bus (:mod:`mcusim.i2c`) and the LPC43xx USART (:mod:`periph.lpc43xx.uart`) are modelled a
+The I2C bus (:mod:`mcusim.i2c`) and the LPC43xx USART (:mod:`mcusim.periph.lpc43xx.uart`) are modelled a
 byte at a time: they report a byte when it *ends*. These tracers turn each report into the exact
 SCL/SDA or TXD edges of that byte, drawn partly in the past. The trace keeps every value change in
 a reorder buffer for ``lag`` base ticks (``trace.request_lag``) before writing it, so the VCD still

@@ -1,13 +1,14 @@
 """A bare ATmega328P at 16 MHz for peripheral tests: kernel, data bus, interrupt controller, SREG,
 and optionally the CPU runtime (4-cycle entry). Peripherals are added by each test."""
 
+from mcusim.periph.avr.cpu import AvrCpuRegs
+
 from mcusim.firmware import Cpu, Rtos
 from mcusim.irq import AvrInterrupts
 from mcusim.kernel import Kernel
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus
 from mcusim.time import TimeBase
-from periph.avr.cpu import AvrCpuRegs
 
 
 def bare_atmega328p(cpu: bool = False) -> Mcu:

@@ -2,9 +2,10 @@
 
 import itertools
 
+from mcusim.fw.arduino.core import OUTPUT, ArduinoCore
+from mcusim.fw.arduino.timerone import TimerOne
+
 import mcusim
-from firmware.arduino.core import OUTPUT, ArduinoCore
-from firmware.arduino.timerone import TimerOne
 
 
 def board():

@@ -8,10 +8,9 @@ import inspect
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from firmware.arduino import encoder as enc_mod
-from firmware.arduino.core_api import CHANGE, INPUT_PULLUP, NOT_AN_INTERRUPT, ArduinoCore
-from firmware.arduino.encoder import ISR_CYCLES, Encoder, EncoderInternalState
+from mcusim.fw.arduino import encoder as enc_mod
+from mcusim.fw.arduino.core_api import CHANGE, INPUT_PULLUP, NOT_AN_INTERRUPT, ArduinoCore
+from mcusim.fw.arduino.encoder import ISR_CYCLES, Encoder, EncoderInternalState
 
 
 class FakeCore:

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from firmware.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, P_ON_E, P_ON_M, PID, REVERSE
+from mcusim.fw.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, P_ON_E, P_ON_M, PID, REVERSE
 
 f32 = np.float32
 

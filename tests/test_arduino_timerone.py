@@ -7,9 +7,8 @@ latches the high byte into TEMP.
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from firmware.arduino.core_api import OUTPUT, DataBus
-from firmware.arduino.timerone import TimerOne
+from mcusim.fw.arduino.core_api import OUTPUT, DataBus
+from mcusim.fw.arduino.timerone import TimerOne
 
 TIMSK1, TCCR1A, TCCR1B = 0x6F, 0x80, 0x81
 TCNT1, ICR1, OCR1A, OCR1B = 0x84, 0x86, 0x88, 0x8A

@@ -7,10 +7,10 @@ import pytest
 from avr_rig import bare_atmega328p
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcusim.periph.avr.adc import Adc
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.signals import AnalogNet
-from periph.avr.adc import Adc
 
 ADCL, ADCH, ADCSRA, ADCSRB, ADMUX, DIDR0 = 0x78, 0x79, 0x7A, 0x7B, 0x7C, 0x7E
 ADEN, ADSC, ADATE, ADIF, ADIE = 0x80, 0x40, 0x20, 0x10, 0x08

@@ -2,10 +2,10 @@
 
 import pytest
 from avr_rig import bare_atmega328p
+from mcusim.periph.avr.extint import ExtInt
+from mcusim.periph.avr.port import AvrPort
 
 from mcusim.signals import Port
-from periph.avr.extint import ExtInt
-from periph.avr.port import AvrPort
 
 PINB, DDRB, PORTB, PIND, DDRD, PORTD = 0x23, 0x24, 0x25, 0x29, 0x2A, 0x2B
 EIFR, EIMSK, EICRA, SREG = 0x3C, 0x3D, 0x69, 0x5F

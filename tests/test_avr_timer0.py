@@ -6,9 +6,9 @@ from avr_rig import bare_atmega328p
 from avr_timer_oracle import MODES8, OCFA, TOV, Oracle
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcusim.periph.avr.timer0 import Timer0
 
 from mcusim.errors import UnsupportedConfiguration
-from periph.avr.timer0 import Timer0
 
 TIFR0, GTCCR, TCCR0A, TCCR0B, TCNT0, OCR0A, OCR0B, TIMSK0 = 0x35, 0x43, 0x44, 0x45, 0x46, 0x47, 0x48, 0x6E
 OVF = 16

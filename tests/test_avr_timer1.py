@@ -1,4 +1,4 @@
-"""ATmega328P Timer/Counter1: sheet vectors (/work/shared/reference/avr_arduino.md §7), datasheet
+"""ATmega328P Timer/Counter1: sheet vectors (the ATmega328P data sheet (project AVR notes) §7), datasheet
 rules, and the event-driven model against the per-clock oracle (tests/avr_timer_oracle.py)."""
 
 from itertools import pairwise
@@ -8,10 +8,10 @@ from avr_rig import bare_atmega328p
 from avr_timer_oracle import ICF, OCFA, OCFB, TOV, Oracle
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from mcusim.periph.avr.timer1 import Timer1
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.signals import Net
-from periph.avr.timer1 import Timer1
 
 TIFR1, TIMSK1, TCCR1A, TCCR1B, TCCR1C = 0x36, 0x6F, 0x80, 0x81, 0x82
 TCNT1, ICR1, OCR1A, OCR1B = 0x84, 0x86, 0x88, 0x8A

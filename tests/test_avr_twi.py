@@ -10,11 +10,11 @@ import pytest
 from avr_rig import bare_atmega328p
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcusim.periph.avr.twi import Twi
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.i2c import I2cBus, I2cMaster
 from mcusim.kernel import PRIO_CPU
-from periph.avr.twi import Twi
 
 TWBR, TWSR, TWAR, TWDR, TWCR, TWAMR = 0xB8, 0xB9, 0xBA, 0xBB, 0xBC, 0xBD
 TWINT, TWEA, TWSTA, TWSTO, TWWC, TWEN, TWIE = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x01

@@ -59,9 +59,7 @@ def test_a_scenario_mistake_is_one_line_naming_file_and_line_with_exit_2(tmp_pat
 def test_missing_board_and_bad_unit_are_usage_errors(capsys):
     assert main(["run", "no-such-board", "--duration", "1ms"]) == 2
     assert "unknown board 'no-such-board'" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as exc:
-        main(["run", "nucleo-f746", "--sample", "1 parsec"])
-    assert exc.value.code == 2
+    assert main(["run", "nucleo-f746", "--sample", "1 parsec"]) == 2
 
 
 def test_csv_has_units_in_the_header_and_rows_on_the_grid(tmp_path, capsys):
@@ -85,7 +83,8 @@ def test_vcd_comes_with_a_gtkwave_layout(tmp_path, capsys):
     vcd = tmp_path / "run.vcd"
     assert main(["run", "nucleo-f746", "--duration", "2ms", "--vcd", str(vcd), "-q"]) == 0
     gtkw = (tmp_path / "run.gtkw").read_text()
-    assert f'[dumpfile] "{vcd}"' in gtkw and "nucleo-f746.PE9" in gtkw
+    # the dump file is named relative to the layout, so that the pair can be moved together
+    assert '[dumpfile] "run.vcd"' in gtkw and "nucleo-f746.PE9" in gtkw and str(tmp_path) not in gtkw
     assert "GTKWave layout" in capsys.readouterr().out
 
 
@@ -126,7 +125,6 @@ def test_duration_on_the_command_line_moves_the_scenarios_end_of_run_checks(tmp_
     (["--csv", "/no/such/folder/x.csv"], "no folder /no/such/folder"),
     (["--summary", "/no/such/folder/s.json"], "no folder /no/such/folder"),
     (["--plot", "x.gif"], "must end in .png"),
-    (["--sample", "0s", "--csv", "x.csv"], "--sample 0: must be positive"),
     (["--register-log", "r.jsonl", "--register-log-filter", "TIM33"], "'TIM33' matches no peripheral"),
 ])
 def test_bad_values_and_outputs_are_usage_errors_found_before_the_run(tmp_path, capsys, monkeypatch, args, msg):
@@ -148,7 +146,7 @@ def test_scenario_values_are_checked_against_the_topic_type_with_file_and_line(t
 
 def test_bench_repeat_must_be_positive(capsys):
     assert main(["bench", "nucleo-f746", "--repeat", "0"]) == 2
-    assert "--repeat 0" in capsys.readouterr().err
+    assert "argument --repeat: 0: must be from 1 to 100" in capsys.readouterr().err
 
 
 def test_avr_interrupt_lines_are_in_the_vcd_and_the_module_command_starts_after_1ms(tmp_path, capsys):

@@ -4,11 +4,11 @@ import math
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcusim.fw.controlmotor.encoder import encoder_get_position, encoder_set_reset, encoder_timn_stop
+from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B
+from mcusim.fw.controlmotor.pwm import pwm_timn_get_duty, pwm_timn_set_duty, pwm_timn_stop
 
 import mcusim
-from firmware.controlmotor.encoder import encoder_get_position, encoder_set_reset, encoder_timn_stop
-from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B
-from firmware.controlmotor.pwm import pwm_timn_get_duty, pwm_timn_set_duty, pwm_timn_stop
 
 SIM = mcusim.load("nucleo-f746")
 FW = SIM.firmware
@@ -63,8 +63,8 @@ def test_encoder_reset_and_stop():
 
 def test_position_formula_variants_agree_below_one_turn_and_differ_above():
     """Correct: 2π(rev + CNT/(ARR+1)); thesis: rev + CNT/ARR·2π (ARR = 1920)."""
-    from firmware.controlmotor.encoder import Encoder
-    from firmware.stm32hal import tim as hal_tim
+    from mcusim.fw.controlmotor.encoder import Encoder
+    from mcusim.fw.stm32hal import tim as hal_tim
 
     class FakeTim:  # registers as the encoder functions read them
         def __init__(self, cnt, arr, down=False):

@@ -133,8 +133,8 @@ def test_odometry_of_a_turn_in_place_matches_the_icr_model_and_shows_the_uncalib
     assert abs(odo["yaw"] - pose["yaw"]) <= 0.5 * (CTRL + 0.0023) + 2 * (2 * math.pi / CPR_WHEEL) * R / 0.825
     # with the geometric track (chi = 1, an uncalibrated skid-steer) the same wheel counts give
     # chi = 1.5 times the true yaw (Mandow 2007): odometry with that layout, fed the final counts
-    from firmware.openrover_rcm.kinematics import make_layout
-    from firmware.openrover_rcm.odometry import Odometry
+    from mcusim.fw.openrover_rcm.kinematics import make_layout
+    from mcusim.fw.openrover_rcm.odometry import Odometry
     naive = Odometry(make_layout("skid_steer", wheel_radius=R, track_width=0.55, chi=1.0), CPR_WHEEL)
     naive.update([u.count for u in sim.firmware.unwrap])
     assert naive.yaw == pytest.approx(1.5 * odo["yaw"], rel=1e-9)

@@ -6,9 +6,10 @@ served (two edges between reads are still right, through the table's ±2 rows); 
 pile up, a flag that is already pending absorbs the next edge on its pin, and counts are lost.
 """
 
+from mcusim.fw.arduino.core import ArduinoCore
+from mcusim.fw.arduino.encoder import Encoder
+
 import mcusim
-from firmware.arduino.core import ArduinoCore
-from firmware.arduino.encoder import Encoder
 
 QUAD = [(0, 0), (0, 1), (1, 1), (1, 0)]  # (pin1, pin2): pin2 leading counts positive (§3)
 

@@ -1,4 +1,4 @@
-"""LPC4337 ADC0/ADC1 (reference/lpc43xx_ciaa_mavlink.md §1): transfer function, software and burst
+"""LPC4337 ADC0/ADC1 (NXP UM10503 (project LPC43xx notes) §1): transfer function, software and burst
 timing at the sheet's CLKDIV values, the 4.5 MHz limit, DONE/OVERRUN rules, the interrupt line
 through the NVIC, the sampling instant, and the configurations that are refused."""
 
@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from lpc_rig import CORE_HZ, bare_lpc4337
+from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning
 
 from mcusim.errors import BusFault, McusimError, UnsupportedConfiguration
 from mcusim.signals import AnalogNet
-from periph.lpc43xx.adc import Adc, AdcClockWarning
 
 ADC0, ADC1 = 0x400E3000, 0x400E4000
 CR, GDR, INTEN, STAT = 0x000, 0x004, 0x00C, 0x030

@@ -2,9 +2,9 @@
 
 import pytest
 from lpc_rig import bare_lpc4337
+from mcusim.periph.lpc43xx.gpio import Gpio
 
 from mcusim.errors import BusFault, McusimError
-from periph.lpc43xx.gpio import Gpio
 
 BASE = 0x400F4000
 

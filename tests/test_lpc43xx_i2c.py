@@ -10,10 +10,9 @@ import itertools
 
 import pytest
 from lpc_rig import bare_lpc4337
-
-from firmware.arduino.core import ArduinoCore
-from firmware.arduino.wire import TwoWire
-from firmware.nuttx.lpc43_i2c import (
+from mcusim.fw.arduino.core import ArduinoCore
+from mcusim.fw.arduino.wire import TwoWire
+from mcusim.fw.nuttx.lpc43_i2c import (
     EINVAL,
     EIO,
     ENXIO,
@@ -23,6 +22,12 @@ from firmware.nuttx.lpc43_i2c import (
     I2cMsg,
     lpc43_i2c_init,
 )
+from mcusim.periph.avr.cpu import AvrCpuRegs
+from mcusim.periph.avr.port import AvrPort
+from mcusim.periph.avr.twi import Twi
+from mcusim.periph.cortexm.systick import SysTick
+from mcusim.periph.lpc43xx.i2c import I2c
+
 from mcusim.errors import BusFault, UnsupportedConfiguration
 from mcusim.firmware import Cpu, Rtos
 from mcusim.i2c import I2cBus, I2cMaster, I2cSlave, MemorySlave
@@ -30,11 +35,6 @@ from mcusim.irq import SYSTICK, AvrInterrupts
 from mcusim.kernel import PRIO_CPU
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus
-from periph.avr.cpu import AvrCpuRegs
-from periph.avr.port import AvrPort
-from periph.avr.twi import Twi
-from periph.cortexm.systick import SysTick
-from periph.lpc43xx.i2c import I2c
 
 BASE = 0x400A1000
 CONSET, STAT, DAT, ADR0, SCLH, SCLL, CONCLR, MMCTRL, BUFR, MASK0 = (

@@ -14,10 +14,10 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from lpc_rig import CORE_HZ, bare_lpc4337
+from mcusim.periph.lpc43xx.uart import Usart
 
 from mcusim.errors import BusFault, UnsupportedConfiguration
 from mcusim.hostserial import BufferEndpoint, PtyEndpoint
-from periph.lpc43xx.uart import Usart
 
 BASE, IRQ = 0x400C1000, 26            # USART2 (UART_USB on the EDU-CIAA)
 RBR = THR = DLL = BASE + 0x00

@@ -148,8 +148,8 @@ def test_open_drain_af_pin_releases_on_one_and_analog_disables_pulls():
 
 def test_hal_encoder_reinit_after_counting_down_starts_at_zero():
     """ST's HAL_TIM_Encoder_Init clears SMS before TIM_Base_SetConfig, so UG sees an up-counter."""
-    from firmware.stm32hal import tim as hal
-    from firmware.stm32hal.regs import Stm32f7
+    from mcusim.fw.stm32hal import tim as hal
+    from mcusim.fw.stm32hal.regs import Stm32f7
     sim = mcusim.load("nucleo-f746", firmware=False)
     dev = Stm32f7(sim.mcu.bus)
     for port, pin in ((0x40020400, 4), (0x40020400, 5)):

@@ -1,6 +1,7 @@
 """Cortex-M NVIC and the firmware runtime: entry latency, priorities, preemption, cycle costs."""
 
 import pytest
+from mcusim.periph.cortexm.systick import SysTick
 
 from mcusim.errors import McusimError
 from mcusim.firmware import Cpu, Rtos
@@ -9,7 +10,6 @@ from mcusim.kernel import Kernel
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus
 from mcusim.time import TimeBase
-from periph.cortexm.systick import SysTick
 
 NVIC = 0xE000E100
 
@@ -103,8 +103,8 @@ def test_task_cycles_are_stretched_by_interrupts(m):
 
 
 def test_rtos_delay_until_wakes_on_the_systick_and_higher_priority_preempts(m):
-    from firmware.stm32hal.cortex import HAL_SYSTICK_Config
-    from firmware.stm32hal.regs import Stm32f7
+    from mcusim.fw.stm32hal.cortex import HAL_SYSTICK_Config
+    from mcusim.fw.stm32hal.regs import Stm32f7
     log = []
 
     async def slow():

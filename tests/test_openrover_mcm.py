@@ -8,10 +8,10 @@ twi.c's ISR and Wire's callbacks in the sketch, the register map of docs/openrov
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mcusim.fw.openrover_mcm import protocol as P
+from mcusim.fw.openrover_mcm.sketch import counts_to_rpm, rpm_to_counts
 
 import mcusim
-from firmware.openrover_mcm import protocol as P
-from firmware.openrover_mcm.sketch import counts_to_rpm, rpm_to_counts
 from mcusim.i2c import I2cMaster
 
 ADDR = P.DEFAULT_ADDRESS

@@ -11,8 +11,7 @@ import math
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
+from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
 
 T = 0.005
 

@@ -1,4 +1,4 @@
-"""Plant physics: DC motor, L6206 bridge, quadrature encoder (reference/plants.md §1–3, §5).
+"""Plant physics: DC motor, L6206 bridge, quadrature encoder (the plant notes §1–3, §5).
 
 Every expected value is computed here from the sheet's equations (closed-form algebra, scipy's
 ODE solver or matrix exponential), never copied from the model's output.

@@ -1,5 +1,5 @@
 """IBT-2 (2 × BTS7960) bridge, the 100 W OpenRover motor preset and the AMT10 encoder
-(reference/plants.md §0, §1.4, §2.1, §2.3, §3.2, §5.2).
+(the plant notes §0, §1.4, §2.1, §2.3, §3.2, §5.2).
 
 Every expected value is computed here from the sheet's equations (closed-form algebra or scipy's
 matrix exponential), never copied from the model's output.

@@ -17,14 +17,13 @@ import sys
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from firmware.openrover_rcm.kinematics import (
+from mcusim.fw.openrover_rcm.kinematics import (
     ELEMENTALL_COUNTS_PER_WHEEL_REV,
     ELEMENTALL_WHEEL_RADIUS,
     make_layout,
     saturate,
 )
-from firmware.openrover_rcm.odometry import Odometry, Unwrap16, max_poll_interval, wrap_angle
+from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16, max_poll_interval, wrap_angle
 
 EPS = sys.float_info.epsilon
 TOL_K = 32

@@ -152,7 +152,7 @@ def test_connect_serial_to_a_missing_uart_names_the_uarts():
 def test_a_misspelled_part_terminal_is_refused_not_left_unwired(tmp_path):
     """A terminal nobody declares (estop.SENS) would leave the E-stop sense unwired: refuse it."""
     import importlib.resources
-    text = (importlib.resources.files("boards") / "ciaa-edu.toml").read_text()
+    text = (importlib.resources.files("mcusim.boards") / "ciaa-edu.toml").read_text()
     bad = tmp_path / "typo.toml"
     bad.write_text(text.replace('"estop.SENSE"', '"estop.SENS"'))
     with pytest.raises(ConfigError, match=r"part estop \(estop\) has no terminal SENS; terminals: ENABLE_IN"):

@@ -8,6 +8,7 @@ them (12-cycle entry, the handler's declared cost, tail-chaining with a full ent
 """
 
 import pytest
+from mcusim.periph.cortexm.systick import SysTick
 
 from mcusim.firmware import Cpu, Rtos
 from mcusim.irq import SYSTICK, Nvic, Scb
@@ -15,7 +16,6 @@ from mcusim.kernel import PRIO_CPU, PRIO_HW, PRIO_OBSERVE, Kernel
 from mcusim.mcu import Mcu
 from mcusim.registers import Bus, Peripheral, Register
 from mcusim.time import TimeBase
-from periph.cortexm.systick import SysTick
 
 NVIC = 0xE000E100
 ENTRY = 12   # Cortex-M exception entry latency in cycles; one cycle is one base tick here
@@ -116,8 +116,8 @@ def test_interrupt_one_tick_after_the_return_finds_the_cpu_free():
 
 
 def systick_task_rig(noisy):
-    from firmware.stm32hal.cortex import HAL_SYSTICK_Config
-    from firmware.stm32hal.regs import Stm32f7
+    from mcusim.fw.stm32hal.cortex import HAL_SYSTICK_Config
+    from mcusim.fw.stm32hal.regs import Stm32f7
     m = rig()
     ends = []
 
@@ -158,8 +158,8 @@ def test_systick_ticks_with_and_without_other_events_give_the_same_timing():
 def test_a_systick_tick_on_a_quiet_cpu_is_one_kernel_event():
     """Issue 9, "a leaner runtime": the wrap is the tick's only event; entry, handler and return
     are done in it when nothing else is queued inside the handler's 12 + cost cycles."""
-    from firmware.stm32hal.cortex import HAL_SYSTICK_Config
-    from firmware.stm32hal.regs import Stm32f7
+    from mcusim.fw.stm32hal.cortex import HAL_SYSTICK_Config
+    from mcusim.fw.stm32hal.regs import Stm32f7
     m = rig()
     m.cpu.vector(SYSTICK, m.rtos.systick_handler, cost=40)
     HAL_SYSTICK_Config(Stm32f7(m.bus), 216_000)
@@ -179,11 +179,11 @@ def test_register_accesses_of_a_handler_are_logged_at_its_body_tick():
         dev = Dev("DEV")
         m.bus.attach(0x40000000, dev)
         seen = []
-        dev.access_log = lambda kind, p, reg, value, old: seen.append((kind, reg.name, value, m.kernel.now))
-        m.cpu.vector(7, lambda: m.write32(0x40000000, 0x5A), cost=30)
+        dev.access_log = lambda kind, p, reg, value, old, seen=seen, m=m: seen.append((kind, reg.name, value, m.kernel.now))
+        m.cpu.vector(7, lambda m=m: m.write32(0x40000000, 0x5A), cost=30)
         enable(m, 7, 1)
         m.kernel.at(1000, m.nvic.set_pending, 7)
-        m.kernel.at(1100, lambda: m.read32(0x40000000))
+        m.kernel.at(1100, lambda m=m: m.read32(0x40000000))
         if noisy:
             noise(m, 1000, 1060)
         m.kernel.run_until(2000)

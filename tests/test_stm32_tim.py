@@ -1,12 +1,12 @@
 """STM32F746 TIM1-5/8 model: the reference sheet's test vectors (§6) through the bus, and the model's
-pinned choices. Sheet: /work/shared/reference/stm32_tim.md."""
+pinned choices. Sheet: ST RM0385 (project timer notes)."""
 
 import pytest
+from mcusim.periph.stm32.tim_input import RESYNC_CYCLES
 from tim_oracle import Rig
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.kernel import PRIO_CPU
-from periph.stm32.tim_input import RESYNC_CYCLES
 
 CEN, UDIS, URS, OPM, DIR, ARPE, UIFREMAP = 1, 2, 4, 8, 16, 128, 1 << 11
 PWM1, PWM2 = 0x60, 0x70

@@ -3,6 +3,7 @@ and against the closed-form rules of the reference sheet (§2.3, §3.2, §4.2-§
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mcusim.periph.stm32.tim_input import RESYNC_CYCLES, filter_timing
 from test_stm32_tim import (
     ARPE,
     CEN,
@@ -19,7 +20,6 @@ from test_stm32_tim import (
 from tim_oracle import Rig, TimOracle
 
 from mcusim.kernel import PRIO_CPU
-from periph.stm32.tim_input import RESYNC_CYCLES, filter_timing
 
 SETTINGS = settings(max_examples=int(__import__("os").environ.get("TIM_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -1,7 +1,7 @@
 """Per-tick reference model of the STM32 timer time base and PWM (test oracle only).
 
 It steps one CK_INT cycle at a time, written straight from the rules of
-/work/shared/reference/stm32_tim.md §2-§3 with no closed forms, so that the event-driven model in
+ST RM0385 (project timer notes) §2-§3 with no closed forms, so that the event-driven model in
 periph/stm32/tim.py can be compared with it edge for edge. Conventions shared with the model (they are
 the model's documented choices): the counter was started by CEN at cycle 0 with the prescaler counter
 at 0; CCxIF is set on the tick on which CNT becomes CCRx (centre-aligned: direction of that tick per
@@ -122,12 +122,13 @@ class Rig:
     """A Mcu with one timer on its bus, at ``mhz`` timer clock over a 216 MHz base."""
 
     def __init__(self, name="TIM1", mhz=216, arr_reset=0, engine="reference"):
+        from mcusim.periph.stm32.tim import Tim
+
         from mcusim.irq import Nvic
         from mcusim.kernel import Kernel
         from mcusim.mcu import Mcu
         from mcusim.registers import Bus
         from mcusim.time import TimeBase
-        from periph.stm32.tim import Tim
 
         self.tb = TimeBase([216_000_000])
         self.kernel = Kernel(self.tb, engine)

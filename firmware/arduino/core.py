@@ -17,7 +17,7 @@ Function names are the core's in snake_case. Deviations, as the simulation needs
 
 from __future__ import annotations
 
-from firmware.arduino.core_api import (  # noqa: F401
+from mcusim.fw.arduino.core_api import (  # noqa: F401
     CHANGE,
     FALLING,
     HIGH,
@@ -28,6 +28,7 @@ from firmware.arduino.core_api import (  # noqa: F401
     OUTPUT,
     RISING,
 )
+
 from mcusim.errors import ConfigError
 
 # data-space addresses (iom328p.h)

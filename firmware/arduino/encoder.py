@@ -11,7 +11,7 @@ from __future__ import annotations
 import weakref
 from dataclasses import dataclass
 
-from firmware.arduino.core_api import CHANGE, INPUT_PULLUP, ArduinoCore
+from mcusim.fw.arduino.core_api import CHANGE, INPUT_PULLUP, ArduinoCore
 
 CORE_NUM_INTERRUPT = 2      # interrupt_pins.h, __AVR_ATmega328P__
 ENCODER_ARGLIST_SIZE = CORE_NUM_INTERRUPT

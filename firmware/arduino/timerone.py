@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from firmware.arduino.core_api import OUTPUT, ArduinoCore, DataBus
+from mcusim.fw.arduino.core_api import OUTPUT, ArduinoCore, DataBus
 
 F_CPU = 16_000_000
 

@@ -16,45 +16,52 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware.controlmotor import VARIANTS
-from firmware.controlmotor.encoder import (
+from mcusim.fw.controlmotor import VARIANTS
+from mcusim.fw.controlmotor.encoder import (
     Encoder,
     encoder_get_position,
     encoder_set_reset,
     encoder_timn_start,
     encoder_update_callback,
 )
-from firmware.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
-from firmware.controlmotor.pwm import Pwm, pwm_enable, pwm_timn_set_duty, pwm_timn_start
-from firmware.stm32hal import cortex
-from firmware.stm32hal import gpio as hal_gpio
-from firmware.stm32hal import tim as hal_tim
-from firmware.stm32hal.rcc import SystemCoreClock
-from firmware.stm32hal.regs import Stm32f7
+from mcusim.fw.controlmotor.pid_controller import BRIDGE_A, BRIDGE_B, PidController
+from mcusim.fw.controlmotor.pwm import Pwm, pwm_enable, pwm_timn_set_duty, pwm_timn_start
+from mcusim.fw.stm32hal import cortex
+from mcusim.fw.stm32hal import gpio as hal_gpio
+from mcusim.fw.stm32hal import tim as hal_tim
+from mcusim.fw.stm32hal.rcc import SystemCoreClock
+from mcusim.fw.stm32hal.regs import Stm32f7
+
 from mcusim.errors import ConfigError
-from mcusim.params import coerce, firmware_params
+from mcusim.params import Param, firmware_params
 
 TIM3_IRQn, TIM4_IRQn = 29, 30
 configTICK_RATE_HZ = 1000
 
 DEFAULTS = {
-    "variant": "correct",
-    "pid_period_ms": 5,
-    "executor_period_ms": 10,
+    "variant": Param("correct", choices=VARIANTS, doc="\"thesis\" runs the literal code with its two bugs"),
+    "pid_period_ms": Param(5, min=1, max=1000, unit="ms", doc="period of the two PID tasks (FreeRTOS ticks of 1 ms)"),
+    "executor_period_ms": Param(10, min=1, max=1000, unit="ms", doc="micro-ROS executor spin period"),
     # gains tuned on this model for a 1.57 rad step: 2.8 % overshoot, within 3 counts after 0.71 s,
     # no OCD trip (τD = 0.02 s overshoots 0.23 rad and trips the OCD when braking from full speed)
-    "kp": 400.0,            # % duty per rad of output-shaft error
-    "kd": 0.05,             # τD, s: brakes in time from full speed (stopping distance ~1.6 rad)
-    "ki": 0.25,             # τI, s
-    "windup_limit": 2.0,    # bound on Σe (rad·samples)
-    "encoder_filter": 0,    # ICxF of the encoder inputs
-    "counts_per_turn": 1920,
+    "kp": Param(400.0, min=0, max=1e6, unit="%/rad", doc="duty per rad of output-shaft error"),
+    "kd": Param(0.05, min=0, max=100, unit="s", doc="derivative time τD"),
+    "ki": Param(0.25, min=0, max=1e4, unit="s", doc="integral time τI (0: no integral action)"),
+    "windup_limit": Param(2.0, min=0, max=1e6, unit="rad·samples", doc="bound on the error sum"),
+    "encoder_filter": Param(0, min=0, max=15, doc="ICxF input filter of the encoder timers"),
+    # ARR = counts - 1 must fit the 16-bit encoder timers; one quadrature cycle is 4 counts
+    "counts_per_turn": Param(1920, min=4, max=65536, unit="counts/output turn",
+                             doc="encoder counts per output-shaft turn (64 CPR x 30:1)"),
     # declared execution costs in core cycles (estimates for -O2 code on the M7 with FPU)
-    "cycles_pid": 1500,
-    "cycles_encoder_isr": 120,
-    "cycles_systick": 150,
-    "cycles_executor": 6000,
+    "cycles_pid": Param(1500, min=0, max=10_000_000, unit="cycles", doc="cost of one PID step"),
+    "cycles_encoder_isr": Param(120, min=0, max=1_000_000, unit="cycles", doc="cost of the encoder ISR"),
+    "cycles_systick": Param(150, min=0, max=100_000, unit="cycles", doc="cost of the SysTick handler"),
+    "cycles_executor": Param(6000, min=0, max=10_000_000, unit="cycles", doc="cost of one executor spin"),
 }
+# what a host may send (``--set /motor1/set_pos=1.57``): |set point| up to 1000 rad (159 output
+# turns, about half a minute at full speed) keeps a typo from becoming a run that never settles
+SET_POS = Param(0.0, min=-1000.0, max=1000.0, unit="rad", doc="output-shaft angle set point")
+ENABLE = Param(True, doc="bridge enable")
 
 
 @dataclass
@@ -67,10 +74,10 @@ class Topic:
 
 
 class ControlMotorFirmware:
+    PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+
     def __init__(self, mcu, **params):
         self.p = firmware_params(DEFAULTS, params)
-        if self.p["variant"] not in VARIANTS:
-            raise ConfigError(f"firmware.variant must be one of {VARIANTS}, not {self.p['variant']!r}")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
         self.dev = Stm32f7(mcu.bus)
         self.pid = PidController()
@@ -90,7 +97,7 @@ class ControlMotorFirmware:
         if topic is None or topic.direction != "sub":
             subs = [t for t in self.topics if self.topics[t].direction == "sub"]
             raise ConfigError(f"no subscribed topic {name!r}; the firmware subscribes to {', '.join(subs)}")
-        return coerce(value, topic.type, name)
+        return (SET_POS if topic.type is float else ENABLE).check(value, name)
 
     def publish(self, name: str, value) -> None:
         self._inbox.append((name, self.check_input(name, value)))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from firmware.stm32hal import tim as hal_tim
+from mcusim.fw.stm32hal import tim as hal_tim
 
 
 @dataclass

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware.stm32hal import gpio as hal_gpio
-from firmware.stm32hal import tim as hal_tim
-from firmware.stm32hal.rcc import timer_clock_freq
+from mcusim.fw.stm32hal import gpio as hal_gpio
+from mcusim.fw.stm32hal import tim as hal_tim
+from mcusim.fw.stm32hal.rcc import timer_clock_freq
 
 PWM_FREQUENCY_HZ = 50_000
 THESIS_ARR = 4319  # the thesis's value for every PWM timer: 216 MHz / 50 kHz - 1
@@ -77,5 +77,5 @@ def pwm_timn_stop(pwm: Pwm) -> None:
 
 
 def _dev(pwm):
-    from firmware.stm32hal.regs import Stm32f7
+    from mcusim.fw.stm32hal.regs import Stm32f7
     return Stm32f7(pwm.htim.Instance._bus)

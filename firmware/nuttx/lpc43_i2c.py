@@ -23,7 +23,7 @@ Deviations from the C, on purpose
   returns ``priv->nmsg``, the number of messages not completed, which is positive on failure.)
 * On a timeout the C only posts the semaphore; here the driver also asks for a STOP (CONSET.STO,
   then CONCLR.STAC|SIC): at once if SI is set, else after the byte under way (see
-  :mod:`periph.lpc43xx.i2c`), so a later transfer finds the bus released.
+  :mod:`mcusim.periph.lpc43xx.i2c`), so a later transfer finds the bus released.
 * A zero-length write (an address probe) goes straight to the next message at 0x18; the C would
   send ``buffer[0]``.
 * ``I2C_M_NOSTART`` (``I2C_M_NORESTART`` in older headers) is supported on a write message that

@@ -3,7 +3,7 @@
 Hardware: IBT-2 (two BTS7960 half-bridges) with RPWM on D9 and LPWM on D10 driven by TimerOne at
 20 kHz; R_EN/L_EN tied high; the current-sense outputs R_IS on A0 and L_IS on A1; the motor's AMT10
 encoder (512 PPR, 2048 counts per motor turn) on D2/D3 read by the PJRC Encoder library; I2C slave
-on A4/A5 (Wire) with the register map of :mod:`firmware.openrover_mcm.protocol`.
+on A4/A5 (Wire) with the register map of :mod:`mcusim.fw.openrover_mcm.protocol`.
 
 loop(): every SAMPLE_MS (PID_v1's sample time) the velocity in counts/s is measured from the
 encoder, PID_v1 computes a duty in [-1024, 1024] (TimerOne units), the sign picks RPWM or LPWM;
@@ -21,29 +21,39 @@ from __future__ import annotations
 
 import struct
 
-from firmware.arduino.core import A0, A1, ArduinoCore
-from firmware.arduino.encoder import Encoder
-from firmware.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
-from firmware.arduino.timerone import TimerOne
-from firmware.arduino.wire import TwoWire
-from firmware.openrover_mcm import protocol as P
+from mcusim.fw.arduino.core import A0, A1, ArduinoCore
+from mcusim.fw.arduino.encoder import Encoder
+from mcusim.fw.arduino.pid_v1 import AUTOMATIC, DIRECT, MANUAL, PID
+from mcusim.fw.arduino.timerone import TimerOne
+from mcusim.fw.arduino.wire import TwoWire
+from mcusim.fw.openrover_mcm import protocol as P
+
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
-from mcusim.params import coerce, firmware_params
+from mcusim.params import Param, firmware_params
 
 DEFAULTS = {
-    "i2c_address": P.DEFAULT_ADDRESS,
-    "sample_ms": 10,
-    "kp": 0.02, "ki": 0.2, "kd": 0.0,   # duty units (1/1024) per count/s
-    "stall_duty": 300,                  # |duty| above this ...
-    "stall_speed": 200,                 # ... with |velocity| below this (counts/s) ...
-    "stall_ms": 500,                    # ... for this long is a stall
-    "r_is": 1000.0, "k_ilis": 8500.0,   # IBT-2 current sense: I = V_IS / R_IS · k_ILIS
-    "is_fault_counts": 900,             # IS at the fault current (4.5 mA · 1 kΩ ≈ 920 counts)
-    "avcc": 5.0,
-    "wire_variant": "fixed",
-    "cycles_loop_work": 3000,           # declared: soft-float PID_v1 + bookkeeping per sample
-    "cycles_loop_idle": 40,             # declared: one pass of loop() with nothing to do
+    # 7-bit addresses 0x08..0x77: 0x00-0x07 and 0x78-0x7F are reserved by the I2C specification
+    "i2c_address": Param(P.DEFAULT_ADDRESS, min=0x08, max=0x77, doc="the module's 7-bit I2C slave address"),
+    "sample_ms": Param(10, min=1, max=10_000, unit="ms", doc="PID_v1 sample time and velocity window"),
+    # PID_v1's SetTunings ignores negative gains; duty units (1/1024) per count/s
+    "kp": Param(0.02, min=0, max=1e4, doc="PID_v1 Kp, duty (1/1024) per count/s"),
+    "ki": Param(0.2, min=0, max=1e4, doc="PID_v1 Ki, per second"),
+    "kd": Param(0.0, min=0, max=1e4, doc="PID_v1 Kd, seconds"),
+    "stall_duty": Param(300, min=0, max=1024, doc="a stall: |duty| (of 1024) above this ..."),
+    "stall_speed": Param(200, min=0, max=10_000_000, unit="counts/s", doc="... with |velocity| below this ..."),
+    "stall_ms": Param(500, min=1, max=3_600_000, unit="ms", doc="... for this long"),
+    "r_is": Param(1000.0, above=0, max=1e7, unit="Ω", doc="IBT-2 current-sense resistor (I = V_IS / R_IS · k_ILIS)"),
+    "k_ilis": Param(8500.0, above=0, max=1e6, doc="BTS7960 current-sense ratio"),
+    "is_fault_counts": Param(900, min=1, max=1024, unit="ADC counts",
+                             doc="IS reading taken as a driver fault (4.5 mA · 1 kΩ ≈ 920 counts)"),
+    "avcc": Param(5.0, min=1.8, max=5.5, unit="V", doc="ADC reference (ATmega328P AVCC range)"),
+    "wire_variant": Param("fixed", choices=("fixed", "core"),
+                          doc="core: the Wire slave bug that makes it deaf after a NACKed byte"),
+    "cycles_loop_work": Param(3000, min=0, max=10_000_000, unit="cycles",
+                              doc="declared: soft-float PID_v1 + bookkeeping per sample"),
+    "cycles_loop_idle": Param(40, min=1, max=1_000_000, unit="cycles",
+                              doc="declared: one pass of loop() with nothing to do"),
 }
 RPWM_PIN, LPWM_PIN, ENC_A_PIN, ENC_B_PIN = 9, 10, 2, 3
 COUNTS_PER_MOTOR_TURN, GEAR_RATIO = 2048, 50
@@ -57,6 +67,15 @@ HOST_INPUTS = {
 }
 
 
+# the checked values of those inputs: the set point travels as int32 counts/s; ±1000 rpm at the
+# wheel (20 times what the 100 W motor reaches) keeps typos out without limiting a test
+INPUTS = {
+    "velocity": Param(0.0, min=-1000.0, max=1000.0, unit="rpm", doc=HOST_INPUTS["velocity"]),
+    "pid_enable": Param(True, doc=HOST_INPUTS["pid_enable"]),
+    "clear_faults": Param(True, doc=HOST_INPUTS["clear_faults"]),
+}
+
+
 def rpm_to_counts(rpm: float) -> int:
     return round(rpm * GEAR_RATIO * COUNTS_PER_MOTOR_TURN / 60)
 
@@ -66,6 +85,9 @@ def counts_to_rpm(counts_s: float) -> float:
 
 
 class OpenRoverMcm:
+    PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
+
     def __init__(self, mcu, adc=None, **params):
         self.p = firmware_params(DEFAULTS, params)
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
@@ -180,11 +202,10 @@ class OpenRoverMcm:
 
     def check_input(self, name: str, value):
         """``value`` for host input ``name`` converted to its type, or ConfigError."""
-        kinds = {"velocity": float, "pid_enable": bool, "clear_faults": bool}
-        if name not in kinds:
+        if name not in INPUTS:
             raise ConfigError(f"no input {name!r}; the module takes: " +
                               "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
-        return coerce(value, kinds[name], name)
+        return INPUTS[name].check(value, name)
 
     def publish(self, name: str, value) -> None:
         """A host input as an I2C write on the module's bus, from 1 ms after reset on (a host

@@ -41,42 +41,67 @@ from __future__ import annotations
 
 import math
 
-from firmware.nuttx.lpc43_i2c import lpc43_i2c_init
-from firmware.nuttx.lpc43_serial import Lpc43SerialDev
-from firmware.openrover_mcm import protocol as P
-from firmware.openrover_rcm.board import CiaaBoard
-from firmware.openrover_rcm.kinematics import make_layout, saturate
-from firmware.openrover_rcm.odometry import Odometry, Unwrap16
+from mcusim.fw.nuttx.lpc43_i2c import lpc43_i2c_init
+from mcusim.fw.nuttx.lpc43_serial import Lpc43SerialDev
+from mcusim.fw.openrover_mcm import protocol as P
+from mcusim.fw.openrover_rcm.board import CiaaBoard
+from mcusim.fw.openrover_rcm.kinematics import make_layout, saturate
+from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16
+
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
-from mcusim.params import coerce, firmware_params
+from mcusim.params import Param, firmware_params
 
+_ADDR = Param(0x08, min=0x08, max=0x77, doc="7-bit I2C address")
 DEFAULTS = {
-    "layout": "skid_steer",
-    "wheel_radius": 0.195,              # ElementAll: 0.39 m wheels
-    "track_width": 0.55,                # [I] see boards/elementall.toml
-    "chi": 1.5,                         # ICR expansion factor used by the odometry and the inverse
-    "wheel_distance": 0.25, "angles_deg": (90.0, 210.0, 330.0),   # omni
-    "lx": 0.2, "ly": 0.2,               # mecanum
-    "modules": (0x08, 0x09, 0x0A, 0x0B),  # I2C addresses in the layout's wheel order (FL, FR, RL, RR)
-    "counts_per_motor_rev": 2048, "gear_ratio": 50,
-    "max_wheel_speed": 4.0,             # rad/s at the wheel (no-load ≈ 4.8 rad/s at 12 V)
-    "max_accel": 0.5,                   # m/s² ramp of the body velocity set point
-    "max_yaw_accel": 1.0,               # rad/s² ramp of the yaw-rate set point
-    "i2c_frequency": 100_000,
-    "console_baud": 115200,             # syslog on USART2 (UART_USB, the FT2232H debug port)
-    "tick_hz": 1000,
-    "control_period_ms": 20,
-    "cmd_timeout_ms": 500,
-    "boot_retries": 3,
-    "boot_delay_ms": 100,               # the modules' bootloader + setup() before the first probe
-    "battery_period_ms": 100,
-    "battery_samples": 8,
-    "r_top": 33_000.0, "r_bottom": 6_800.0, "vref": 3.3, "battery_channel": 1,
-    "low_v": 11.9, "critical_v": 11.5, "hysteresis_v": 0.2,
-    "cmd_rate_hz": 20,
-    "cycles_boot": 204_000,             # 1 ms from reset to rover_control's first line [I]
-    "cycles_control": 6000, "cycles_battery": 1500, "cycles_status": 300, "cycles_systick": 120,
+    "layout": Param("skid_steer", choices=("differential", "skid_steer", "omni", "mecanum"),
+                    doc="wheel layout of the kinematics and the odometry"),
+    "wheel_radius": Param(0.195, above=0, max=10.0, unit="m", doc="ElementAll: 0.39 m wheels"),
+    "track_width": Param(0.55, above=0, max=100.0, unit="m", doc="distance between the left and right wheels"),
+    "chi": Param(1.5, min=1.0, max=10.0, doc="ICR expansion factor (skid steer; 1: no skid)"),
+    "wheel_distance": Param(0.25, above=0, max=100.0, unit="m", doc="omni: centre to wheel"),
+    "angles_deg": Param((90.0, 210.0, 330.0), length=3, items=Param(0.0, min=-360.0, max=360.0, unit="°"),
+                        doc="omni: wheel angles"),
+    "lx": Param(0.2, above=0, max=100.0, unit="m", doc="mecanum: half wheelbase"),
+    "ly": Param(0.2, above=0, max=100.0, unit="m", doc="mecanum: half track"),
+    "modules": Param((0x08, 0x09, 0x0A, 0x0B), length=range(2, 9), items=_ADDR,
+                     doc="I2C addresses of the motor modules in the layout's wheel order (FL, FR, RL, RR)"),
+    "counts_per_motor_rev": Param(2048, min=4, max=1_000_000, unit="counts", doc="encoder counts per motor turn"),
+    "gear_ratio": Param(50.0, above=0, max=10_000.0, doc="motor turns per wheel turn"),
+    "max_wheel_speed": Param(4.0, above=0, max=1000.0, unit="rad/s",
+                             doc="wheel speed limit (no-load ≈ 4.8 rad/s at 12 V)"),
+    "max_accel": Param(0.5, above=0, max=100.0, unit="m/s²", doc="ramp of the body velocity set point"),
+    "max_yaw_accel": Param(1.0, above=0, max=1000.0, unit="rad/s²", doc="ramp of the yaw-rate set point"),
+    # the LPC4337 I2C0 runs up to 1 MHz (Fast-mode Plus); below 10 kHz SCLH/SCLL overflow 16 bits
+    "i2c_frequency": Param(100_000, min=10_000, max=1_000_000, unit="Hz", doc="I2C0 SCL frequency"),
+    # the USART's 16-bit divisor reaches 300 baud from 204 MHz; 3 Mbaud is the fastest standard rate
+    "console_baud": Param(115200, min=300, max=3_000_000, unit="baud", doc="syslog on USART2"),
+    # SysTick's 24-bit reload: at least 13 Hz at 204 MHz; NuttX runs 100 Hz to 10 kHz ticks
+    "tick_hz": Param(1000, min=100, max=10_000, unit="Hz", doc="system tick (CONFIG_USEC_PER_TICK)"),
+    "control_period_ms": Param(20, min=1, max=10_000, unit="ms", doc="control task period"),
+    "cmd_timeout_ms": Param(500, min=1, max=3_600_000, unit="ms", doc="command watchdog"),
+    "boot_retries": Param(3, min=1, max=100, doc="module probes at boot"),
+    "boot_delay_ms": Param(100, min=0, max=60_000, unit="ms",
+                           doc="the modules' bootloader + setup() before the first probe"),
+    "battery_period_ms": Param(100, min=1, max=60_000, unit="ms", doc="battery task period"),
+    "battery_samples": Param(8, min=1, max=1000, doc="moving average of battery readings"),
+    "r_top": Param(33_000.0, above=0, max=1e9, unit="Ω", doc="battery divider, upper resistor"),
+    "r_bottom": Param(6_800.0, above=0, max=1e9, unit="Ω", doc="battery divider, lower resistor"),
+    "vref": Param(3.3, min=2.7, max=3.6, unit="V", doc="ADC reference (LPC4337 VDDA range)"),
+    "battery_channel": Param(1, min=0, max=7, doc="ADC0 channel of the battery divider"),
+    # sAPI's adcInit at 200 kS/s: 204 MHz / 93 = 2.19 MHz; CLKDIV below 45 runs the ADC above its
+    # 4.5 MHz maximum (a warning, an error with --strict)
+    "adc_clkdiv": Param(92, min=0, max=255, doc="ADC0 CR.CLKDIV: the ADC clock is PCLK / (CLKDIV + 1)"),
+    "low_v": Param(11.9, above=0, max=100.0, unit="V", doc="battery LOW threshold"),
+    "critical_v": Param(11.5, above=0, max=100.0, unit="V", doc="battery CRITICAL threshold (below low_v)"),
+    "hysteresis_v": Param(0.2, min=0, max=10.0, unit="V", doc="battery state hysteresis"),
+    "cmd_rate_hz": Param(20.0, above=0, max=1000.0, unit="Hz", doc="rate of the host's command stream"),
+    "cycles_boot": Param(204_000, min=0, max=2_040_000_000, unit="cycles",
+                         doc="1 ms from reset to rover_control's first line"),
+    "cycles_control": Param(6000, min=0, max=10_000_000, unit="cycles", doc="cost of one control step"),
+    "cycles_battery": Param(1500, min=0, max=10_000_000, unit="cycles", doc="cost of one battery step"),
+    "cycles_status": Param(300, min=0, max=10_000_000, unit="cycles", doc="cost of one status step"),
+    "cycles_systick": Param(120, min=0, max=100_000, unit="cycles", doc="cost of the SysTick handler"),
 }
 LAYOUT_GEOMETRY = {"differential": ("wheel_radius", "track_width"),
                    "skid_steer": ("wheel_radius", "track_width", "chi"),
@@ -94,16 +119,29 @@ HOST_INPUTS = {
     "cmd_vel.lateral": "sideways speed, m/s (omni and mecanum layouts)",
     "cmd_vel.stream": "true/false: the host keeps re-sending the command at cmd_rate_hz",
 }
+# their checked values: speeds beyond what the rover can do are saturated by the controller, but a
+# command above 10 m/s or 20 rad/s is taken for a typo
+INPUTS = {
+    "cmd_vel.linear": Param(0.0, min=-10.0, max=10.0, unit="m/s", doc=HOST_INPUTS["cmd_vel.linear"]),
+    "cmd_vel.angular": Param(0.0, min=-20.0, max=20.0, unit="rad/s", doc=HOST_INPUTS["cmd_vel.angular"]),
+    "cmd_vel.lateral": Param(0.0, min=-10.0, max=10.0, unit="m/s", doc=HOST_INPUTS["cmd_vel.lateral"]),
+    "cmd_vel.stream": Param(True, doc=HOST_INPUTS["cmd_vel.stream"]),
+}
 
 
 class RoverControl:
+    PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
     SUMMARY_TOP = ("odometry",)
 
     def __init__(self, mcu, **params):
+        if isinstance(params.get("layout"), str):          # skid-steer and skid_steer alike
+            params = {**params, "layout": params["layout"].replace("-", "_")}
         self.p = p = firmware_params(DEFAULTS, params)
-        kind = str(p["layout"]).replace("-", "_")
-        if kind not in LAYOUT_GEOMETRY:
-            raise ConfigError(f"firmware.layout = {p['layout']!r}: expected one of {', '.join(LAYOUT_GEOMETRY)}")
+        kind = p["layout"]
+        if not p["critical_v"] < p["low_v"]:
+            raise ConfigError(f"firmware.critical_v = {p['critical_v']:g} must be below firmware.low_v = "
+                              f"{p['low_v']:g}")
         try:
             self.layout = make_layout(kind, **{k: p[k] for k in LAYOUT_GEOMETRY[kind]})
         except ValueError as exc:
@@ -114,7 +152,7 @@ class RoverControl:
                               f"of {self.layout.wheels} wheels")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
         self.rtos.tick_hz = p["tick_hz"]
-        self.board = CiaaBoard(mcu)
+        self.board = CiaaBoard(mcu, adc_clkdiv=p["adc_clkdiv"])
         self.counts_per_wheel_rev = p["counts_per_motor_rev"] * p["gear_ratio"]
         # state
         self.found: list[int] = []
@@ -375,7 +413,7 @@ class RoverControl:
         if name not in HOST_INPUTS:
             raise ConfigError(f"no input {name!r}; the controller takes: " +
                               "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
-        v = coerce(value, bool if name == "cmd_vel.stream" else float, name)
+        v = INPUTS[name].check(value, name)
         if name == "cmd_vel.lateral" and v and not self.layout.holonomic:
             raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
         return v

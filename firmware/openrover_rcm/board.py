@@ -2,7 +2,7 @@
 
 Everything here goes through the LPC4337's registers on the MCU bus, as NuttX's board code and
 drivers do (``lpc43_gpio_write``/``lpc43_gpio_read`` on the GPIO port block, the ADC's CR/STAT/DRn,
-the Cortex-M SysTick). Pins are those of reference/lpc43xx_ciaa_mavlink.md §2.4: the free GPIO pins
+the Cortex-M SysTick). Pins are those of the EDU-CIAA-NXP schematic: the free GPIO pins
 of header P2 for the E-stop input, the motor-enable output and the buzzer, and the board LEDs.
 
 The battery ADC read is a software-started single conversion on ADC0 (CR.START = 001, poll
@@ -39,9 +39,10 @@ PINS = {
 
 
 class CiaaBoard:
-    def __init__(self, mcu):
+    def __init__(self, mcu, adc_clkdiv: int = ADC_CLKDIV_200KSPS):
         self.mcu, self.bus = mcu, mcu.bus
         self.adc = mcu.periph.get("ADC0")
+        self.adc_clkdiv = adc_clkdiv        # CR.CLKDIV: PCLK / (CLKDIV + 1) is the ADC clock
 
     # --- GPIO (lpc43_gpio_config / lpc43_gpio_write / lpc43_gpio_read) ------------------------
     def gpio_config_output(self, pin: str, level: int = 0) -> None:
@@ -66,11 +67,11 @@ class CiaaBoard:
 
     # --- ADC0 single conversion -------------------------------------------------------------
     def adc_init(self) -> None:
-        self.bus.write32(ADC0_BASE + ADC_CR, ADC_CR_PDN | ADC_CLKDIV_200KSPS << 8)
+        self.bus.write32(ADC0_BASE + ADC_CR, ADC_CR_PDN | self.adc_clkdiv << 8)
 
     async def adc_read(self, rtos, channel: int) -> int:
         """One conversion of ``channel``: the 10-bit code."""
-        cr = ADC_CR_PDN | ADC_CLKDIV_200KSPS << 8 | 1 << channel
+        cr = ADC_CR_PDN | self.adc_clkdiv << 8 | 1 << channel
         self.bus.write32(ADC0_BASE + ADC_CR, cr | ADC_CR_START_NOW)
         while not self.bus.read32(ADC0_BASE + ADC_STAT) & (1 << channel):
             await rtos.wait_signal(self.adc.done)     # the busy-wait, without one pass per poll

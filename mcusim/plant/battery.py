@@ -1,5 +1,5 @@
 """Lead-acid battery bank feeding the motor bridges, and the controller's battery divider
-(reference/plants.md §4, §4.1, §5.1 "Battery coupling").
+(the plant notes §4, §4.1, §5.1 "Battery coupling").
 
 Model: ``count`` identical 12 V 9 Ah sealed lead-acid (VRLA/AGM) batteries in parallel, each a
 first-order Thevenin equivalent circuit (§4; the classic ECM of PyBaMM's "Thevenin" model and the

@@ -1,4 +1,4 @@
-"""IBT-2 motor driver board: two Infineon BTS7960 half bridges (reference/plants.md §2.1, §2.3).
+"""IBT-2 motor driver board: two Infineon BTS7960 half bridges (the plant notes §2.1, §2.3).
 
 Wiring: half bridge R (pins RPWM = IN, R_EN = INH, R_IS) drives M+, half bridge L (LPWM, L_EN,
 L_IS) drives M−. The motor current i flows M+ -> motor -> M− (i > 0 for RPWM=1, LPWM=0).
@@ -39,7 +39,7 @@ Overtemperature: there is no thermal model, so the shutdown is an injected fault
 and its IS pin shows the fault current I_IS(lim) until the latch is reset by an INH low pulse or by
 ``clear_overtemperature(side)`` (cooled down) [§2.3: thermal shutdown latched, reset via INH].
 
-Supply coupling (battery, plants.md §4, §5.1 "Battery coupling"): ``params.Vs`` is the bus voltage
+Supply coupling (battery, the plant notes §4, §5.1 "Battery coupling"): ``params.Vs`` is the bus voltage
 B+ − B−. Alone the bridge treats it as an ideal source; a :class:`mcusim.plant.battery.LeadAcidBank`
 connected to it calls :meth:`Bts7960Bridge.set_supply` once per battery step (the held bus voltage,
 piecewise constant) and reads :meth:`Bts7960Bridge.supply_charge`, the charge drawn from B+ since

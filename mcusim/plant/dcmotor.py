@@ -1,6 +1,6 @@
 """Brushed DC motor + gearbox + load, simulated exactly between events (ARCHITECTURE invariant 4).
 
-Physics (reference/plants.md §1.1), all on the motor shaft::
+Physics (the plant notes §1.1), all on the motor shaft::
 
     L·di/dt   = v_m − R·i − K·ω
     J_eq·dω/dt = K·i − b·ω − τc·sgn ω − τ_L,m          J_eq = J + load_inertia/N²
@@ -46,11 +46,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
-from ..errors import ConfigError
 import numpy as np
 
 from ..engine import periodmap
 from ..engine.screening import ChunkTraj, PeriodPlan
+from ..errors import ConfigError
 from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
 from .presets import motor_preset
@@ -80,7 +80,7 @@ def _check_overrides(cls, overrides: dict, what: str):
 
 @dataclass(frozen=True)
 class MotorParams:
-    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (plants.md §1.3)."""
+    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (the plant notes §1.3)."""
 
     R: float = 2.18            # armature resistance, Ω
     L: float = 1.5e-3          # armature inductance, H
@@ -539,14 +539,14 @@ class DcMotor:
         after = self.kernel.now - self._t0
         if tr.kind == "chunk":
             end = tr.periods * tr.plan.P
-            search = lambda g: tr.first_fire(g, after, inv)  # noqa: E731
+            search = lambda g: tr.first_fire(g, after, inv)
         else:           # a closed-form segment, up to its own next event
             end = self._seg_end
             if end <= after:
                 return
             xa, xe = self._at(tr, after), tr.eval(end * inv)
             hval = pwl.hval
-            search = lambda g: pwl.first_fire(  # noqa: E731
+            search = lambda g: pwl.first_fire(
                 lambda k: hval(g, tr.eval(k * inv)), pwl.guard_m2(g, tr.m2), after, end,
                 hval(g, xa), hval(g, xe), g[4], inv)
         best, firing = None, []

@@ -1,4 +1,4 @@
-"""Quadrature encoder disc on the motor shaft (reference/plants.md §3).
+"""Quadrature encoder disc on the motor shaft (the plant notes §3).
 
 ``counts_per_rev`` (C4) is the ×4 count per motor revolution (64 for the Pololu 37D: do not
 multiply by 4 again). Threshold k sits at θ = k·2π/C4 on the motor shaft; the encoder position is

@@ -5,13 +5,13 @@ Two contacts [I: the usual E-stop wiring; the rover's actual wiring is not docum
 - an NC contact in series with the motor-enable line, from the controller's enable output
   (``enable_in``) to the bridges' enable inputs (``enable_out``: the IBT-2 R_EN/L_EN = BTS7960 INH
   pins). Released, the contact is closed and ``enable_out`` follows ``enable_in``; pressed, it is
-  open and the IBT-2's pull-downs on its inputs (74HC244 buffer with pull-downs, plants.md §2.3) pull
+  open and the IBT-2's pull-downs on its inputs (74HC244 buffer with pull-downs, the plant notes §2.3) pull
   the line low: the button model drives 0 on ``enable_out`` as driver ``name`` for them. So the
   motors lose drive (INH low: both switches off, coast) even if the firmware keeps enable high.
 - a second (NO) contact from the controller's ``sense`` input to ground. The board's pull-up holds
   ``sense`` at 1 (give the Net ``pull=1``, or a board ``[pull]``); pressed, the button drives it 0
   as driver ``name``; released, it lets go (the pull-up returns it to 1). Active low, as the
-  EDU-CIAA buttons (reference/lpc43xx_ciaa_mavlink.md §2.4).
+  EDU-CIAA buttons (board schematic).
 
 Contact bounce and the contacts' switching order are not modelled: both change at the tick of
 :meth:`EStop.press` / :meth:`EStop.release`.

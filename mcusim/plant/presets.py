@@ -1,4 +1,4 @@
-"""Named motor parameter sets (reference/plants.md §0, §1.3, §1.4).
+"""Named motor parameter sets (the plant notes §0, §1.3, §1.4).
 
 A preset is a plain dict of :class:`mcusim.plant.dcmotor.MotorParams` names -> values, all on the
 motor shaft except ``gear_ratio`` / ``load_inertia`` / ``load_torque`` (output shaft). Use it as
@@ -18,7 +18,7 @@ from ..errors import ConfigError
 __all__ = ["MOTOR_PRESETS", "motor_preset"]
 
 MOTOR_PRESETS: dict[str, dict[str, float]] = {
-    # System (a), plants.md §0 / §1.3: Pololu 37D 12 V, 30:1, 64 CPR. Identical to the
+    # System (a), the plant notes §0 / §1.3: Pololu 37D 12 V, 30:1, 64 CPR. Identical to the
     # MotorParams defaults (a test checks that they stay identical).
     "pololu-37d-12v-30": {
         "R": 2.18,            # Ω            [I from V: 12 V / 5.5 A stall]
@@ -33,7 +33,7 @@ MOTOR_PRESETS: dict[str, dict[str, float]] = {
         "load_inertia": 0.0,  # kg·m² output [none]
         "load_torque": 0.0,   # N·m output
     },
-    # System (b), plants.md §0 / §1.4: 100 W, 12 V, 2000 rpm, 0.45 N·m motor, 1:50 gearbox,
+    # System (b), the plant notes §0 / §1.4: 100 W, 12 V, 2000 rpm, 0.45 N·m motor, 1:50 gearbox,
     # 0.39 m wheels, recommended row η_r = 0.78, I_0 = 1.0 A. Loop resistance of the bridge is
     # NOT included in R (the BTS7960 model adds R_ON(HS) + R_ON(LS) in the drive states).
     "openrover-100w-50": {

@@ -68,6 +68,11 @@ class Torque(Action):
 
     fields: ClassVar[dict] = {"motor": ("str", True), "nm": ("number", True)}
 
+    def parse(self, sc, i, name, spec):
+        out = super().parse(sc, i, name, spec)
+        _bounded(sc, out, i, name, "nm", 1000.0, "N·m")
+        return out
+
     def prepare(self, sc, sim, spec, line, where):
         motor = sc._part(sim, spec["motor"], "motor", line, where)
 
@@ -77,12 +82,24 @@ class Torque(Action):
         return fn
 
 
-def _positive_duration(sc, out: dict, i: int, name: str, key: str, default: str) -> dict:
-    """Give ``out[key]`` its default duration and check that it is positive."""
+def _positive_duration(sc, out: dict, i: int, name: str, key: str, default: str, least: str = "0s") -> dict:
+    """Give ``out[key]`` its default duration and check that it is positive (and at least
+    ``least``: a forwarder every nanosecond would be a run that never ends)."""
     out.setdefault(key, parse_duration(default))
-    if out[key] <= 0:
-        raise sc._err(sc._line("at", i, name, key), f"[[at]] #{i + 1}: {name}.{key} must be positive")
+    if out[key] <= 0 or out[key] < parse_duration(least):
+        raise sc._err(sc._line("at", i, name, key), f"[[at]] #{i + 1}: {name}.{key} must be "
+                      + ("positive" if least == "0s" else f"at least {least}"))
     return out
+
+
+def _bounded(sc, out: dict, i: int, name: str, key: str, limit: float, unit: str) -> None:
+    """|``out[key]``| at most ``limit``: physical sizes, so that a typo is not a runaway run."""
+    if abs(out[key]) > limit:
+        raise sc._err(sc._line("at", i, name, key), f"[[at]] #{i + 1}: {name}.{key} = {out[key]:g}: must be "
+                      f"from {-limit:g} to {limit:g} {unit}")
+
+
+HAND_SPEED = 100.0                 # rad/s: the fastest a hand turns an output shaft (955 rpm)
 
 
 class Turn(Action):
@@ -91,7 +108,13 @@ class Turn(Action):
     fields: ClassVar[dict] = {"motor": ("str", True), "angle": ("number", True), "over": ("duration", False)}
 
     def parse(self, sc, i, name, spec):
-        return _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "over", "100ms")
+        out = _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "over", "100ms", TURN_STEP)
+        _bounded(sc, out, i, name, "angle", 1000.0, "rad")
+        if abs(out["angle"]) / float(out["over"]) > HAND_SPEED:
+            raise sc._err(sc._line("at", i, name, "angle"), f"[[at]] #{i + 1}: {name}: {out['angle']:g} rad "
+                          f"over {_fmt_time(out['over'])} is faster than a hand turns a shaft "
+                          f"(at most {HAND_SPEED:g} rad/s): give a longer over")
+        return out
 
     def prepare(self, sc, sim, spec, line, where):
         """A hand turns the output shaft to ``angle`` over ``over``, at constant speed: every
@@ -131,7 +154,7 @@ class Follow(Action):
     fields: ClassVar[dict] = {"from": ("str", True), "to": ("str", True), "period": ("duration", False)}
 
     def parse(self, sc, i, name, spec):
-        return _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "period", "10ms")
+        return _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "period", "10ms", "100us")
 
     def prepare(self, sc, sim, spec, line, where):
         src_fw, src = sc._firmware_for(sim, spec["from"], line, where)

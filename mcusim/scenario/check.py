@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import math
 import sys
-from fractions import Fraction
 
 from ..errors import ConfigError, McusimError, TimeError
-from ..time import parse_duration
+from ..params import fmt_duration, user_duration
 
 # part kinds a key may name: the methods a part of that kind has
 PART_KINDS = {
@@ -26,12 +25,7 @@ def _fmt_time(t) -> str:
     """``Fraction(1, 500)`` -> ``"2ms"``; None (the end of the run) -> ``"end"``."""
     if t is None:
         return "end"
-    if t == 0:
-        return "0s"
-    for unit, scale in (("s", 1), ("ms", 10**3), ("us", 10**6)):
-        if t >= Fraction(1, scale):
-            return f"{float(t * scale):g}{unit}"
-    return f"{float(t * 10**9):g}ns"
+    return fmt_duration(t)
 
 
 def _is_number(v) -> bool:
@@ -66,12 +60,10 @@ class Checker:
         where = f"{self._where(table, index)}: {'.'.join(key)}"
         line = self._line(table, index, *key)
         if typ == "duration":
-            if isinstance(value, bool) or not isinstance(value, (str, int, float)):
-                raise self._err(line, f"{where} = {value!r}: expected a duration such as \"500ms\"")
             try:
-                return parse_duration(value)
-            except TimeError as exc:
-                raise self._err(line, f"{where}: {exc}") from None
+                return user_duration(value, where, positive=False)
+            except ConfigError as exc:
+                raise self._err(line, str(exc)) from None
         ok = {"str": lambda v: isinstance(v, str) and v != "", "number": _is_number,
               "int": lambda v: isinstance(v, int) and not isinstance(v, bool),
               "bool": lambda v: isinstance(v, bool)}[typ]

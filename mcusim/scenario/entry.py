@@ -11,7 +11,15 @@ from ..errors import ConfigError, McusimError
 from .model import Scenario
 from .source import _Lines
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent.parent / "scenarios"
+
+def _shipped_dir() -> Path:
+    """The folder of the shipped scenarios: ``scenarios/`` of the repository, installed as the
+    package ``mcusim.scenarios`` (an editable install maps it back to the repository's folder)."""
+    from importlib.resources import files
+    return Path(str(files("mcusim.scenarios")))
+
+
+SCENARIO_DIR = _shipped_dir()
 
 
 def scenario_names() -> list[str]:
@@ -32,7 +40,12 @@ def load_scenario(path) -> Scenario:
     mistake raises ConfigError ``<file>:<line>: <problem>``."""
     p = _resolve(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        data = p.read_bytes()
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"{p}:{line}: not a UTF-8 text file (byte {data[exc.start]:#04x} at offset "
+                          f"{exc.start}); a scenario is TOML text") from None
     except OSError as exc:
         known = ", ".join(scenario_names())
         raise ConfigError(f"cannot read scenario {str(path)!r}: {exc.strerror}"

@@ -45,8 +45,8 @@ class EncoderGlitch(FaultKind):
         out.setdefault("width", parse_duration("1us"))
         if out["channel"] not in ("A", "B"):
             raise bad("channel must be \"A\" or \"B\"", "channel")
-        if out["width"] <= 0:
-            raise bad("width must be positive", "width")
+        if not 0 < out["width"] <= 1:
+            raise bad("width must be positive and at most 1s", "width")
 
     def prepare(self, sc, sim, part, spec, line, where):
         width = sc._ticks(sim.timebase, spec["width"], line, f"{where}: width")
@@ -61,8 +61,8 @@ class MissingEdges(FaultKind):
     fields: ClassVar[dict] = {"count": ("int", True)}
 
     def check(self, out, clear, bad):
-        if not clear and out["count"] <= 0:
-            raise bad("count must be a positive number", "count")
+        if not clear and not 0 < out["count"] <= 1_000_000:
+            raise bad("count must be from 1 to 1000000", "count")
 
     def prepare(self, sc, sim, part, spec, line, where):
         def act():
@@ -128,8 +128,8 @@ class BatterySag(FaultKind):
             raise bad("battery_sag needs soc = (0..1) and/or amps = (extra load, A)")
         if "soc" in out and not 0 <= out["soc"] <= 1:
             raise bad("soc must be in [0, 1]", "soc")
-        if "amps" in out and out["amps"] < 0:
-            raise bad("amps must not be negative", "amps")
+        if "amps" in out and not 0 <= out["amps"] <= 1000:
+            raise bad("amps must be from 0 to 1000 A", "amps")
 
     def prepare(self, sc, sim, part, spec, line, where):
         target, clear = spec[self.part_key], spec["clear"]

@@ -155,6 +155,10 @@ class Scenario(Checker):
             raise ConfigError(f"{self.path}: duration must be positive, not {value!r}")
         self._duration = d
 
+    def duration_line(self) -> int:
+        """The line of ``duration`` in the file (for messages about it)."""
+        return self._line("scenario", None, "duration")
+
     # --- building and applying ------------------------------------------------------------------------
     def check_board(self, board: str) -> None:
         """ConfigError if the scenario names a board and ``board`` (a name or a profile path) is

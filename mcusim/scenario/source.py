@@ -128,6 +128,8 @@ class _Lines:
         found = self._search((table, index), key)
         if found is None:
             found = self.tables.get((table, index))
+        if found is None and self.keys.get((table, index)):     # only dotted headers: [run.set]
+            found = min(self.keys[(table, index)].values())
         if found is None:
             found = self._search((None, None), (table,) + key)
         return found or self.tables.get((table, None)) or self.tables.get((table, 0)) or 1

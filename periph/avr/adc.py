@@ -1,7 +1,7 @@
 """ATmega328P ADC (datasheet §24 "Analog-to-Digital Converter"), event-driven.
 
-Reference: /work/shared/reference/avr_arduino.md §6 (ADC), §7 vectors 20-21. simavr's ADC errors
-(§5: result scaled by 1023, a uint8_t prescale counter that overflows at /128) are not copied.
+Sources: the ATmega328P data sheet (ADC chapter; vector 21). simavr's ADC errors
+(its result scaled by 1023, a uint8_t prescale counter that overflows at /128) are not copied.
 
 Registers (data space): ADCL 0x78, ADCH 0x79, ADCSRA 0x7A (ADEN, ADSC, ADATE, ADIF, ADIE,
 ADPS2:0), ADCSRB 0x7B (ADTS2:0; ACME belongs to the analog comparator and raises if set),

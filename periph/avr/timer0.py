@@ -1,8 +1,8 @@
 """ATmega328P Timer/Counter0 (8-bit), as the Arduino core uses it (millis/micros) and beyond.
 
-Reference: /work/shared/reference/avr_arduino.md §1.6 (Arduino init: mode 3, clk/64, TOIE0), §7 #12.
-The counting engine is :class:`periph.avr.timer1.AvrTimer`, shared with Timer1 and checked against
-the per-clock oracle; every choice listed in :mod:`periph.avr.timer1` applies here too (free-running
+Sources: the ATmega328P data sheet and ArduinoCore-avr's init() (mode 3, clk/64, TOIE0; vector 16).
+The counting engine is :class:`mcusim.periph.avr.timer1.AvrTimer`, shared with Timer1 and checked against
+the per-clock oracle; every choice listed in :mod:`mcusim.periph.avr.timer1` applies here too (free-running
 shared prescaler: with divider N the timer clocks fall on CPU cycles that are multiples of N; flags
 and pin actions on the clock that leaves the compared value; TCNT0 write blocks the next clock's
 compare match).

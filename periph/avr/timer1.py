@@ -1,7 +1,7 @@
 """ATmega328P Timer/Counter1 (16-bit): all waveform modes, OC1A/OC1B, input capture, TEMP.
 
-Reference: /work/shared/reference/avr_arduino.md ("the sheet") §1, §5, §7.  The counting engine
-(:class:`AvrTimer`) is shared with Timer0 (:mod:`periph.avr.timer0`); the per-clock reference model
+Sources: the ATmega328P data sheet ("the sheet" below; § marks are the project's AVR notes).  The counting engine
+(:class:`AvrTimer`) is shared with Timer0 (:mod:`mcusim.periph.avr.timer0`); the per-clock reference model
 used as the test oracle is ``tests/avr_timer_oracle.py``.
 
 Modelled

@@ -1,6 +1,6 @@
 """ATmega328P TWI (two-wire interface, datasheet §22 "2-wire Serial Interface") as an I2C **slave**.
 
-Reference: /work/shared/reference/avr_arduino.md §6 (TWI slave, Wire), §7 vectors 22-23.
+Sources: the ATmega328P data sheet (TWI chapter; vectors 22-23) and ArduinoCore-avr's Wire/twi.c.
 
 Registers (data space): TWBR 0xB8, TWSR 0xB9 (TWS7:3 read-only status, TWPS1:0), TWAR 0xBA
 (TWA6:0, TWGCE), TWDR 0xBB, TWCR 0xBC (TWINT, TWEA, TWSTA, TWSTO, TWWC, TWEN, TWIE), TWAMR 0xBD.

@@ -1,7 +1,7 @@
 """LPC4337 ADC0/ADC1 (10-bit SAR, UM10503 "ADC0/1"), event-driven.
 
-Reference: /work/shared/reference/lpc43xx_ciaa_mavlink.md §1 (1.1 instances and IRQs, 1.2 register
-map, 1.3 timing, 1.4 modes and flags, 1.5 transfer function). Tags [V]/[I] below are the sheet's.
+Sources: NXP UM10503 and the LPC4337 data sheet (instances and IRQs, register map, timing, modes
+and flags, transfer function). Tags: [V] read in a source, [I] our inference.
 
 Instances: ADC0 at 0x400E3000 (NVIC IRQ 17), ADC1 at 0x400E4000 (IRQ 21); the board builder attaches
 them. 32-bit accesses only. ``clock`` is PCLK_ADC (BASE_APB3: 204 MHz under LPCOpen/sAPI, 12 MHz

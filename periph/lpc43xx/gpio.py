@@ -1,6 +1,6 @@
 """LPC4337 GPIO port block (UM10503 "GPIO"), base 0x400F4000, 16 KB of address space.
 
-Reference: /work/shared/reference/lpc43xx_ciaa_mavlink.md §2.4 (base address, the EDU-CIAA buttons,
+Sources: NXP UM10503 and the EDU-CIAA-NXP schematic (base address, the buttons,
 LEDs and free header pins); register layout and wording from NXP's SVD (svd2rust ``gpio_port``) and
 LPCOpen's ``LPC_GPIO_T``.
 

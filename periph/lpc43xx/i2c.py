@@ -1,9 +1,9 @@
 """LPC4337 I2C0 (UM10503 chapter "I2C-bus interface"; the same block as LPC17xx/LPC11xx I2C) as a
 bus **master** on an :class:`mcusim.i2c.I2cBus`.
 
-Reference: /work/shared/reference/lpc43xx_ciaa_mavlink.md §2.2 (I2C0 at 0x400A1000, IRQ 18, the
+Sources: NXP UM10503 and the EDU-CIAA-NXP schematic (I2C0 at 0x400A1000, IRQ 18, the
 EDU-CIAA's dedicated pins P1.19/P1.21 with 2.2 kΩ pull-ups). The master-side twin of the ATmega TWI
-slave in :mod:`periph.avr.twi`: SI plays the role of TWINT.
+slave in :mod:`mcusim.periph.avr.twi`: SI plays the role of TWINT.
 
 Registers (offsets from the base; 32-bit accesses only)
 =======================================================

@@ -1,6 +1,6 @@
 """LPC4337 USART0/2/3 in asynchronous mode (UM10503 "USART0_2_3"), 16550-style, event-driven.
 
-Reference: /work/shared/reference/lpc43xx_ciaa_mavlink.md §2.3 (instances and board use); register
+Sources: NXP UM10503 and the EDU-CIAA-NXP schematic (instances and board use); register
 layout, reset values and wording from NXP's SVD (svd2rust ``usart0``) and LPCOpen's
 ``uart_18xx_43xx.h``/``.c`` (``LPC_USART_T``, ``Chip_UART_Init``, ``Chip_UART_SetBaudFDR``).
 

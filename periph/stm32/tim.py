@@ -1,6 +1,7 @@
 """STM32F746 general-purpose and advanced timers TIM1-TIM5, TIM8 (time base, PWM, encoder).
 
-Reference: /work/shared/reference/stm32_tim.md (called "the sheet" below), §1-§4.
+Sources: ST RM0385, the TIM1/TIM8 and TIM2-TIM5 chapters ("the sheet" below; § marks are the
+project's timer notes).
 
 Modelled
 --------
@@ -14,7 +15,7 @@ Modelled
 * Encoder mode SMS=001/010/011 (§4) with the direction table of §4.2, CCxP inversion, the ICxF filter
   with CKD, DIR, wrap in both directions with UEV, the up-only prescaler counter of §4.3, and the capture
   of CNT into CCR1/CCR2 on the active edge when CC1S/CC2S=01 and CCxE=1 (HAL_TIM_Encoder_Start sets
-  CCxE). Input stage: :mod:`periph.stm32.tim_input`.
+  CCxE). Input stage: :mod:`mcusim.periph.stm32.tim_input`.
 * Everything else raises UnsupportedConfiguration when set to a non-reset value (invariant 7): other
   OCxM/SMS values, OCxCE, TS/ECE/ETR, CR2 (MMS, CCDS, OIS...), DMA enables, TIE/COMIE/BIE, CCxG/TG/COMG/
   BG, BDTR dead time/break/lock/OSSx/AOE, complementary outputs, channels 5/6, DCR/DMAR/OR, input capture
@@ -43,7 +44,7 @@ Choices where the sheet says [INF]/[UNVERIFIED]
   and wraps to 0 with an overflow. In centre-aligned mode, CNT >= ARR while counting up turns the
   counter down at once (no UEV) [both UNVERIFIED].
 * Encoder (§4): SMS=001 counts TI1 edges, 010 TI2 edges (HAL reading). DIR is updated on every decoded
-  transition of TI1FP1/TI2FP2 while CEN=1. Input latency: see :mod:`periph.stm32.tim_input` (sampled at
+  transition of TI1FP1/TI2FP2 while CEN=1. Input latency: see :mod:`mcusim.periph.stm32.tim_input` (sampled at
   the first CK_INT/f_SAMPLING edge strictly after the pin edge, +2 CK_INT resynchronisation). If TI1 and
   TI2 take effect on the same CK_INT edge (same sample) nothing is counted and DIR is unchanged (the RM
   calls it undefined, §4.3). Encoder counting with ARR=0 is blocked.

@@ -1,10 +1,10 @@
 """Input stage of the STM32 general-purpose timers: TIx resynchronisation and the ICxF filter.
 
-Reference: /work/shared/reference/stm32_tim.md §4.3-§4.4.
+Sources: ST RM0385 (STM32F75xxx/74xxx reference manual), TIM input stage and filter.
 
 A TIx net edge reaches the timer's decoder (encoder mode) or capture stage through:
 
-* polarity: TIxFPx = TIx XOR CCxP (done by the caller, :class:`periph.stm32.tim.Tim`);
+* polarity: TIxFPx = TIx XOR CCxP (done by the caller, :class:`mcusim.periph.stm32.tim.Tim`);
 * the ICxF digital filter (§4.4): the filter samples at f_SAMPLING (multiples of its period counted
   from base tick 0); the first sample that can see a level change at base tick ``t`` is the first
   sampling edge *strictly after* ``t``. The filtered output takes the new level after ``N``
@@ -107,7 +107,7 @@ _CCOF = (0, 1 << 9, 1 << 10, 1 << 11, 1 << 12)
 
 
 class EncoderStage:
-    """Encoder-mode part of :class:`periph.stm32.tim.Tim` (§4): decoding, DIR, up-only prescaler
+    """Encoder-mode part of :class:`mcusim.periph.stm32.tim.Tim` (§4): decoding, DIR, up-only prescaler
     counter, wrap with UEV, and the capture of CNT on the active edge of TI1FP1/TI2FP2."""
 
     def _filter(self, ch: int):

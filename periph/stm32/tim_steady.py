@@ -1,4 +1,4 @@
-"""Fast engine part of :class:`periph.stm32.tim.Tim`: steady waveforms instead of edge events.
+"""Fast engine part of :class:`mcusim.periph.stm32.tim.Tim`: steady waveforms instead of edge events.
 
 While the counter runs edge-aligned (CMS=00) and no compare interrupt is enabled on an output
 channel, a PWM output is fully described by the counter's period and the channel's compare value:

@@ -1,0 +1,163 @@
+"""The files a command writes: all checked before the run starts, and written so that a run that
+fails or is interrupted leaves no half-written file posing as complete.
+
+* Checked first: each path is writable (its folder exists and may be written; an existing file
+  may be replaced; a folder is refused), no two outputs name the same file (the VCD's ``.gtkw``
+  included), no output overwrites an input (the scenario or board file), and what an output
+  needs is there (matplotlib for ``--plot``, a known image format).
+* Written at the end (summary, plot, GTKWave layout, bench figures): to a hidden temporary file
+  in the same folder, renamed over the final name once complete.
+* Streamed during the run (VCD, CSV, register log): to ``<name>.part``, renamed to ``<name>``
+  when the run completes. A run that fails leaves ``<name>.part`` (marked incomplete) and says so.
+
+Special files (``/dev/null``, a FIFO, a terminal) are written directly.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import stat
+
+from .errors import ConfigError
+
+PLOT_FORMATS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
+
+
+def _special(path: str) -> bool:
+    """An existing file that is not a regular file (a device, a FIFO): written in place."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not stat.S_ISREG(mode) and not stat.S_ISDIR(mode)
+
+
+class Output:
+    """One output file: ``option`` (``--vcd``), the user's ``path``, and where to write it."""
+
+    def __init__(self, option: str, path: str, streamed: bool):
+        self.option, self.path, self.streamed = option, os.fspath(path), streamed
+        self.special = _special(self.path)
+        self.temp: str | None = None
+        self.done = False
+
+    @property
+    def key(self) -> str:
+        return os.path.realpath(self.path)
+
+    def check(self) -> None:
+        path, opt = self.path, self.option
+        if not path:
+            raise ConfigError(f"{opt}: an empty file name")
+        if os.path.isdir(path):
+            raise ConfigError(f"{opt} {path}: is a folder; give a file name")
+        if self.special:
+            if not os.access(path, os.W_OK):
+                raise ConfigError(f"{opt} {path}: cannot write there (permission denied)")
+            return
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            raise ConfigError(f"{opt} {path}: no folder {folder}")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise ConfigError(f"{opt} {path}: cannot write in folder {folder} (permission denied)")
+        if os.path.exists(path) and not os.access(path, os.W_OK):
+            raise ConfigError(f"{opt} {path}: the file exists and cannot be replaced (permission denied)")
+        self.temp = self._temp_name()
+        try:               # the surest check: make the file we will write now, before the run
+            with open(self.temp, "w" if self.streamed else "x"):
+                pass
+        except OSError as exc:
+            self.temp = None
+            raise ConfigError(f"{opt} {path}: cannot write: {exc.strerror or exc}") from None
+
+    def _temp_name(self) -> str:
+        if self.streamed:
+            return self.path + ".part"
+        folder, base = os.path.split(os.path.abspath(self.path))
+        ext = os.path.splitext(base)[1]
+        return os.path.join(folder, f".{base}.{secrets.token_hex(4)}.tmp{ext}")
+
+    @property
+    def target(self) -> str:
+        """The name to open for writing now."""
+        return self.path if self.temp is None else self.temp
+
+    def commit(self) -> None:
+        """The file is complete: give it its name."""
+        if self.temp is not None and not self.done:
+            os.replace(self.temp, self.path)
+        self.done = True
+
+    def abandon(self) -> str | None:
+        """The run did not complete: drop a file written at the end; a streamed one stays as
+        ``<name>.part`` (returned) with a line saying it is incomplete where the format allows."""
+        if self.temp is None or self.done:
+            return None
+        self.done = True
+        if self.streamed and os.path.exists(self.temp) and os.path.getsize(self.temp) > 0:
+            return self.temp
+        try:
+            os.remove(self.temp)
+        except OSError:
+            pass
+        return None
+
+
+class Outputs:
+    """The outputs of one command, checked together before the run."""
+
+    def __init__(self, inputs=()):
+        self.items: list[Output] = []
+        self.inputs = [os.path.realpath(p) for p in inputs if p and os.path.exists(p)]
+
+    def add(self, option: str, path, streamed: bool = False) -> Output:
+        out = Output(option, path, streamed)
+        self.items.append(out)
+        return out
+
+    def check(self) -> None:
+        """Everything a run's outputs need, before the run: ConfigError naming the first problem.
+        Temporary files made by the check are removed if a later output is refused."""
+        seen: dict[str, Output] = {}
+        for out in self.items:
+            if not out.path:
+                raise ConfigError(f"{out.option}: an empty file name")
+            if out.special:
+                continue
+            other = seen.get(out.key)
+            if other is not None:
+                raise ConfigError(f"{other.option} and {out.option} name the same file {out.path}; "
+                                  "give each output its own name")
+            if out.key in self.inputs:
+                raise ConfigError(f"{out.option} {out.path}: that is an input of this run; it would be overwritten")
+            seen[out.key] = out
+        try:
+            for out in self.items:
+                out.check()
+        except ConfigError:
+            self.abandon()
+            raise
+
+    def commit(self) -> None:
+        for out in self.items:
+            out.commit()
+
+    def abandon(self) -> list[str]:
+        """Drop or mark what is not complete; returns the partial files left (``.part``)."""
+        return [p for p in (out.abandon() for out in self.items) if p]
+
+
+def check_plot(path: str) -> None:
+    """``--plot``: a format matplotlib writes, and matplotlib installed."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in PLOT_FORMATS:
+        raise ConfigError(f"--plot {path}: the file name must end in .png, .pdf, .svg or .jpg")
+    import importlib.util
+    try:
+        found = importlib.util.find_spec("matplotlib") is not None
+    except (ImportError, ValueError):     # blocked or broken
+        found = False
+    if not found:
+        raise ConfigError("--plot needs matplotlib, which is not installed: "
+                          "pip install 'mcusim[plot]' (or pip install matplotlib)")

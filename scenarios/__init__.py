@@ -1,0 +1,1 @@
+"""The example scenarios (data): ``mcusim run BOARD --scenario <name>``; see docs/scenarios.md."""

@@ -1,0 +1,186 @@
+"""Board profiles are data (issue 11): kinds from a registry, never an import named by the file;
+the schema of docs/boards.md checked with file:line errors; the walk-through of docs/boards.md."""
+
+import importlib.metadata
+import json
+import re
+import sys
+from pathlib import Path
+from typing import ClassVar
+
+import pytest
+
+import mcusim
+from mcusim import kinds
+from mcusim.board import board_names, shipped_text
+from mcusim.cli import main
+from mcusim.errors import ConfigError
+from mcusim.params import Param
+
+DOC = Path(__file__).resolve().parent.parent / "docs" / "boards.md"
+
+
+def _err(capsys, argv):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_the_kind_tables_of_the_doc_are_the_registry():
+    text = DOC.read_text()
+    body = text.split("<!-- kinds:begin -->\n", 1)[1].split("<!-- kinds:end -->", 1)[0]
+    expected = "".join(f"### {title}\n\n{kinds.reference(g)}\n" for g, title in
+                       (("peripheral", "Peripheral kinds"), ("part", "Part kinds"), ("firmware", "Firmware kinds")))
+    assert body == expected, "docs/boards.md: paste the output of `mcusim boards --kinds` between the markers"
+
+
+def test_every_key_the_shipped_profiles_use_is_documented():
+    import tomllib
+    text = DOC.read_text()
+    for name in board_names():
+        prof = tomllib.loads(shipped_text(name))
+        for table, value in prof.items():
+            assert f"`[{table}" in text or f"`[[{table}]]`" in text, (name, table)
+            if table in ("run", "bench", "pins", "analog", "pull", "links"):
+                continue                   # their keys are names (pins, nets, --set keys), not schema
+            for entry in value if isinstance(value, list) else [value]:
+                for key in entry:
+                    assert f"`{key}`" in text, (name, table, key)
+
+
+def test_a_profile_cannot_name_a_python_object_to_import(tmp_path, capsys):
+    marker = tmp_path / "pwned"
+    evil = tmp_path / "evil.py"
+    evil.write_text(f"open({str(marker)!r}, 'w').close()\nclass Tim: pass\n")
+    sys.path.insert(0, str(tmp_path))
+    try:
+        text = shipped_text("nucleo-f746")
+        for old, new in (('kind = "stm32-tim"', 'class = "evil:Tim"'),
+                         ('kind = "stm32-tim"', 'kind = "evil:Tim"'),
+                         ('kind = "controlmotor"', 'class = "evil:Tim"'),
+                         ('kind = "dcmotor"', 'kind = "evil:Tim"')):
+            p = tmp_path / "b.toml"
+            p.write_text(text.replace(old, new, 1))
+            err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+            assert re.search(r"b\.toml:\d+: ", err) and ("never a Python class" in err or "unknown" in err), err
+        assert not marker.exists() and "evil" not in sys.modules
+    finally:
+        sys.path.remove(str(tmp_path))
+
+
+@pytest.mark.parametrize("old, new, needle", [
+    ('nvic_irqs = 98', 'nvic_irqs = "many"', "[core] nvic_irqs = 'many': expected an integer"),
+    ('sysclk = "216MHz"', 'sysclk = "0Hz"', "[clocks] sysclk: bad frequency"),
+    ('counter_bits = 32', 'counter_bits = 24', "counter_bits = 24: expected one of 16, 32"),
+    ('irqs = { update = 29, cc = 29 }', 'irqs = { update = 999, cc = 29 }', "update = 999: must be from 0 to 495"),
+    ('irqs = { update = 29, cc = 29 }', 'irqs = { update = 120, cc = 29 }', "interrupt 120 is not one of the core's 98"),
+    ('port = "E"', 'port = "Z"', "port = 'Z': expected one of A, B"),
+    ('counts_per_rev = 64', 'counts_per_rev = -1', "counts_per_rev = -1: must be from 1 to 100000"),
+    ('name = "motor1"\nkind = "dcmotor"', 'name = "motor1"\nkind = "dcmotor"\nR = inf',
+     "R = inf: expected a finite number"),
+    ('[run.set]', '[run.sett]', "[run]: unknown key 'sett' (known: set)"),
+    ('[run.set]', '[runn.set]', "unknown table or key 'runn'"),
+    ('name = "TIM8"', 'name = "TIM1"', "a second peripheral of that name"),
+    ('base = 0x40000000', 'base = 0x40010000', "overlaps another peripheral"),
+    ('PE9 = "bridgeA.IN1"', 'PE99 = "bridgeA.IN1"', "has no pin 'PE99'"),
+    ('PE9 = "bridgeA.IN1"', 'PE9 = "bridgeA"', 'expected "<part>.<TERMINAL>"'),
+    ('kind = "controlmotor"', 'kind = "controlmotor"\npid_period_ms = 0', "firmware.pid_period_ms = 0"),
+    ('kind = "controlmotor"', 'kind = "controlmotor"\nbogus = 1', "unknown parameter 'bogus' of controlmotor"),
+])
+def test_profile_mistakes_name_the_file_and_line(tmp_path, capsys, old, new, needle):
+    text = shipped_text("nucleo-f746")
+    assert old in text
+    p = tmp_path / "b.toml"
+    p.write_text(text.replace(old, new, 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    assert needle in err, err
+    if "overlaps" not in needle and "has no pin" not in needle:
+        line = text[:text.index(old)].count("\n") + new.count("\n") + 1     # the changed line
+        assert f"b.toml:{line}: " in err, (line, err)
+
+
+def test_every_shipped_profile_passes_the_schema_and_builds():
+    for name in board_names():
+        sim = mcusim.load(name)
+        sim.discard()
+
+
+class _Flywheel:
+    """A flywheel that is no motor (a registered part kind for the test)."""
+
+    PARAMS: ClassVar[dict] = {"mass": Param(1.0, above=0, max=100.0, unit="kg")}
+    REFS = ("motor",)
+
+    def __init__(self, kernel, name, motor, mass=1.0):
+        self.name, self.motor, self.mass = name, motor, mass
+
+
+def test_a_registered_kind_is_usable_with_its_declared_parameters(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(kinds, "_registered", {})
+    kinds.register("part", "flywheel", _Flywheel)
+    text = shipped_text("nucleo-f746") + '\n[[part]]\nname = "wheel"\nkind = "flywheel"\nmotor = "motor1"\nmass = 2.5\n'
+    p = tmp_path / "b.toml"
+    p.write_text(text)
+    sim = mcusim.load(str(p), overrides={"wheel.mass": 3.0})
+    assert sim.part("wheel").mass == 3.0 and sim.part("wheel").motor is sim.part("motor1")
+    sim.discard()
+    err = _err(capsys, ["run", str(p), "--duration", "1ms", "--set", "wheel.mass=1e9"])
+    assert "wheel.mass = 1e+09: must be above 0 and at most 100 kg" in err
+    with pytest.raises(ConfigError, match="cannot be replaced"):
+        kinds.register("part", "dcmotor", _Flywheel)
+
+
+def test_an_entry_point_registers_a_kind_and_a_broken_one_is_one_line(tmp_path, capsys, monkeypatch):
+    eps = [importlib.metadata.EntryPoint("flywheel", f"{__name__}:_Flywheel", "mcusim.parts"),
+           importlib.metadata.EntryPoint("broken", "no_such_module_xyz:Thing", "mcusim.parts")]
+    monkeypatch.setattr(kinds, "_registered", {})
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [e for e in eps if e.group == group])
+    assert "flywheel" in kinds.known("part") and "broken" in kinds.known("part")
+    base = shipped_text("nucleo-f746") + '\n[[part]]\nname = "wheel"\nmotor = "motor1"\n'
+    p = tmp_path / "b.toml"
+    p.write_text(base + 'kind = "flywheel"\n')
+    assert main(["run", str(p), "--duration", "1ms", "-q"]) == 0
+    p.write_text(base + 'kind = "broken"\n')
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    assert "part kind 'broken' (entry point no_such_module_xyz:Thing) cannot be loaded: ModuleNotFoundError" in err
+
+
+def test_the_walk_through_of_the_doc(tmp_path, capsys, monkeypatch):
+    """docs/boards.md, "a board of your own": the same commands and edits, run."""
+    doc = DOC.read_text()
+    edits = [('name = "nucleo-f746"', 'name = "my-board"'),
+             ("counts_per_rev = 64", "counts_per_rev = 48"),
+             ('kind = "controlmotor"', 'kind = "controlmotor"\ncounts_per_turn = 1440'),
+             ('name = "motor1"\nkind = "dcmotor"', 'name = "motor1"\nkind = "dcmotor"\nload_inertia = 2e-5')]
+    for _, new in edits:
+        block = "\n".join("   " + ln for ln in new.splitlines())
+        assert f"   ```toml\n{block}\n   ```" in doc, new
+    assert "mcusim boards --show nucleo-f746 > my-board.toml" in doc
+    assert "mcusim run my-board.toml --duration 100ms --summary my-board.json" in doc
+    monkeypatch.chdir(tmp_path)
+    assert main(["boards", "--show", "nucleo-f746"]) == 0
+    text = capsys.readouterr().out
+    for old, new in edits:
+        assert old in text
+        text = text.replace(old, new)
+    Path("my-board.toml").write_text(text)
+    # the doc's 100 ms, shortened with the documented --duration (a later option wins)
+    assert main(["run", "my-board.toml", "--duration", "100ms", "--summary", "my-board.json",
+                 "--duration", "5ms", "-q"]) == 0
+    s = json.loads(Path("my-board.json").read_text())
+    assert s["board"] == "my-board" and s["simulated_s"] == 0.005
+    sim = mcusim.load("my-board.toml", firmware=False)
+    assert sim.part("encoder1").counts_per_rev == 48 and sim.part("motor1").params.load_inertia == 2e-5
+    sim.discard()
+
+
+def test_a_registered_firmware_that_is_no_firmware_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(kinds, "_registered", {})
+    kinds.register("firmware", "not-a-firmware", _Flywheel)         # takes (kernel, name, motor)
+    kinds.register("firmware", "silent", type("Silent", (), {"__init__": lambda self, mcu: None}))
+    p = tmp_path / "b.toml"
+    for kind, needle in (("not-a-firmware", "firmware not-a-firmware:"), ("silent", "is not a firmware")):
+        p.write_text(shipped_text("nucleo-f746").replace('kind = "controlmotor"', f'kind = "{kind}"'))
+        err = _err(capsys, ["run", str(p), "--duration", "1ms", "--set", "motor1.R=2"])
+        assert needle in err, err

@@ -1,0 +1,197 @@
+"""Every bad input a careless user types is one line on stderr and exit status 2, found before the
+run (issue 11): each case below was a traceback, a silently wrong or endless run, or exit 1."""
+
+import json
+import os
+
+import pytest
+
+from mcusim.cli import main
+
+
+def _usage_error(capsys, argv, *needles):
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2, (rc, err)
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, err
+    return err
+
+
+@pytest.mark.parametrize("board, key, needle", [
+    # were ZeroDivisionError tracebacks: periods, tick rates and baud rates must be positive
+    ("nucleo-f746", "firmware.pid_period_ms=0", "firmware.pid_period_ms = 0: must be from 1 to 1000 ms"),
+    ("pro-mini", "firmware.sample_ms=0", "firmware.sample_ms = 0: must be from 1 to 10000 ms"),
+    ("ciaa-edu", "firmware.tick_hz=0", "firmware.tick_hz = 0: must be from 100 to 10000 Hz"),
+    ("ciaa-edu", "firmware.console_baud=0", "firmware.console_baud = 0: must be from 300 to 3000000 baud"),
+    # were ValueError / struct.error tracebacks
+    ("pro-mini", "firmware.wire_variant=x", "firmware.wire_variant = 'x': expected one of fixed, core"),
+    ("pro-mini", "velocity=1e9", "velocity = 1e+09: must be from -1000 to 1000 rpm"),
+    # were accepted, then silently wrong: an endless run, a firmware that does nothing, a runaway
+    ("nucleo-f746", "motor1.R=inf", "motor1.R = inf: expected a finite number"),
+    ("nucleo-f746", "motor1.R=nan", "motor1.R = nan: expected a finite number"),
+    ("nucleo-f746", "motor1.R=0", "motor1.R = 0: must be from 0.001 to 1000 Ω"),
+    ("nucleo-f746", "firmware.pid_period_ms=-5", "must be from 1 to 1000 ms"),
+    ("nucleo-f746", "firmware.counts_per_turn=0", "firmware.counts_per_turn = 0: must be from 4 to 65536"),
+    ("nucleo-f746", "/motor1/set_pos=1e308", "/motor1/set_pos = 1e+308: must be from -1000 to 1000 rad"),
+    # was exit 1 from deep inside the I2C model: a 7-bit address is checked where it is given
+    ("pro-mini", "firmware.i2c_address=999", "firmware.i2c_address = 999: must be from 8 to 119"),
+    ("elementall", "mcm1.firmware.i2c_address=0x80", "i2c_address"),
+    # enumerations are listed plainly, not as a Python tuple
+    ("nucleo-f746", "firmware.variant=foo", "firmware.variant = 'foo': expected one of correct, thesis"),
+    # the key the README used to document is refused, naming the real ones
+    ("nucleo-f746", "bridgeA.ocd_threshold=4.0", "I_ocd"),
+    ("ciaa-edu", "firmware.critical_v=12", "must be below firmware.low_v"),
+    ("elementall", "battery.ocv_full=11", "ocv_full = 11 V must be above ocv_empty"),
+])
+def test_values_are_checked_against_their_declared_range(capsys, board, key, needle):
+    err = _usage_error(capsys, ["run", board, "--duration", "1ms", "--set", key], needle)
+    assert "battery battery" not in err and "(" not in err.split(":", 2)[-1][:1]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--duration", "5"], "a duration needs a unit"),                # bare numbers are not seconds
+    (["--duration", "1e300s"], "longer than the limit of 600s (raise it with --max-duration)"),
+    (["--duration", "0s"], "must be positive"),
+    (["--duration=-1ms"], "bad duration"),
+    (["--duration", "nan"], "bad duration"),
+    (["--duration", "1ps"], "shorter than one base tick"),
+    (["--duration", "1ms", "--vcd-sample", "0s", "--vcd", "x.vcd"], "must be positive"),
+    (["--duration", "1ms", "--vcd-sample", "1ps", "--vcd", "x.vcd"], "the finest sampling grid is 1us"),
+    (["--duration", "1ms", "--sample", "1ns", "--csv", "x.csv"], "the finest sampling grid is 1us"),
+    (["--duration", "1ms", "--sample", "1.0000001ms", "--csv", "x.csv"], "--sample 1.0000001ms: not a whole"),
+    (["--duration", "1ms", "--register-log", "r.jsonl", "--register-log-filter", ""], "is empty"),
+    (["--duration", "1ms", "--register-log-filter", "TIM1"], "needs --register-log"),
+    (["--duration", "1ms", "--no-firmware", "--set", "/motor1/set_pos=1"], "runs without firmware"),
+    (["--duration", "1ms", "--vcd", "x", "--csv", "x"], "--vcd and --csv name the same file x"),
+    (["--duration", "1ms", "--vcd", "x.vcd", "--summary", "x.gtkw"], "name the same file x.gtkw"),
+    (["--duration", "1ms", "--summary", "."], "is a folder"),
+])
+def test_command_line_mistakes_are_one_line_and_exit_2(tmp_path, monkeypatch, capsys, args, needle):
+    monkeypatch.chdir(tmp_path)
+    _usage_error(capsys, ["run", "nucleo-f746", *args], needle)
+    assert sorted(os.listdir(tmp_path)) == []             # nothing written, not even a temporary file
+
+
+def test_the_duration_limit_can_be_raised_with_a_flag(capsys):
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "2ms", "--max-duration", "1ms"], "limit of 1ms")
+    assert main(["run", "nucleo-f746", "--duration", "2ms", "--max-duration", "1ms", "--max-duration", "1s"]) == 0
+
+
+def test_a_scenario_longer_than_the_limit_names_its_file_and_line(tmp_path, capsys):
+    p = tmp_path / "long.toml"
+    p.write_text('[scenario]\nboard = "nucleo-f746"\nduration = "1e400s"\n')
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(p)], f"{p}:3:", "longer than the limit")
+    p.write_text('[scenario]\nduration = 2\n')                    # a bare number is not a duration
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(p)], f"{p}:2:", "with a unit")
+
+
+@pytest.mark.parametrize("what", ["board", "scenario"])
+def test_a_binary_file_is_one_line_naming_it(tmp_path, capsys, what):
+    p = tmp_path / "x.toml"
+    p.write_bytes(b"[board]\n\xff\xfe\x00 binary")
+    argv = ["run", str(p)] if what == "board" else ["run", "nucleo-f746", "--scenario", str(p)]
+    _usage_error(capsys, argv + ["--duration", "1ms"], f"{p}:2: not a UTF-8 text file")
+
+
+def test_outputs_that_cannot_be_written_are_refused_before_the_run(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):            # root writes anywhere: a missing folder instead
+            ro = tmp_path / "missing"
+        for opt in ("--summary", "--vcd", "--csv", "--plot", "--register-log"):
+            target = str(ro / ("x.png" if opt == "--plot" else "x"))
+            _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", opt, target], opt)
+        assert main(["bench", "nucleo-f746", "--duration", "1ms", "--repeat", "1", "--json", str(ro / "b.json")]) == 2
+        assert "--json" in capsys.readouterr().err
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+
+
+def test_a_full_device_is_named_with_its_option(capsys):
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    err = _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--vcd", "/dev/full"],
+                       "--vcd /dev/full", "No space left on device")
+    assert "error: :" not in err
+    assert os.path.exists("/dev/full") and not os.path.isfile("/dev/full")   # written in place, not replaced
+
+
+def test_plot_without_matplotlib_says_how_to_get_it_before_the_run(tmp_path, monkeypatch, capsys):
+    import sys
+    monkeypatch.setitem(sys.modules, "matplotlib", None)       # as if not installed
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--plot", str(tmp_path / "p.png")],
+                 "pip install 'mcusim[plot]'")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failing_run_leaves_no_complete_looking_file(tmp_path, monkeypatch, capsys):
+    import mcusim.sim
+    real_run = mcusim.sim.Simulation.run
+
+    def failing_run(self, **kw):
+        real_run(self, seconds="1ms")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mcusim.sim.Simulation, "run", failing_run)
+    rc = main(["run", "nucleo-f746", "--duration", "5ms", "-q", "--vcd", str(tmp_path / "r.vcd"),
+               "--csv", str(tmp_path / "r.csv"), "--summary", str(tmp_path / "s.json")])
+    assert rc == 130
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["r.csv.part", "r.vcd.part"], names      # streamed files marked incomplete, no summary
+    err = capsys.readouterr().err
+    assert "partial output left in" in err and "interrupted" in err
+
+
+def test_a_completed_run_renames_its_outputs_into_place(tmp_path, capsys):
+    rc = main(["run", "nucleo-f746", "--duration", "1ms", "-q", "--vcd", str(tmp_path / "r.vcd"),
+               "--csv", str(tmp_path / "r.csv"), "--summary", str(tmp_path / "s.json")])
+    assert rc == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.csv", "r.gtkw", "r.vcd", "s.json"]
+    assert json.loads((tmp_path / "s.json").read_text())["simulated_s"] == 0.001
+
+
+def test_an_output_may_not_overwrite_the_scenario(tmp_path, capsys):
+    p = tmp_path / "s.toml"
+    p.write_text('[scenario]\nduration = "1ms"\n')
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(p), "--summary", str(p)], "input of this run")
+    assert p.read_text() == '[scenario]\nduration = "1ms"\n'
+
+
+def test_set_topics_replace_the_profiles_demo_command_and_parameters_do_not(tmp_path, capsys):
+    s = tmp_path / "s.json"
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--set", "/motor1/set_pos=0.5", "--summary", str(s)]) == 0
+    motors = json.loads(s.read_text())["motors"]
+    assert motors["motor1"]["setpoint_rad"] == 0.5 and motors["motor2"]["setpoint_rad"] == 0.0
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--set", "motor1.R=2.5", "--summary", str(s)]) == 0
+    motors = json.loads(s.read_text())["motors"]          # [run.set]: 1.57 and -3.14
+    assert motors["motor1"]["setpoint_rad"] == 1.57 and motors["motor2"]["setpoint_rad"] == -3.14
+
+
+def test_summary_rows_line_up_for_long_motor_names(capsys):
+    assert main(["run", "rover-diff", "--duration", "1ms"]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith(("motor ", "left.", "right."))]
+    ends = {len(ln) for ln in lines}
+    starts = {ln.index("angle") for ln in lines if "angle" in ln}
+    assert len(ends) == 1 and lines[2].startswith("right.motor ") and starts, lines
+
+
+def test_trace_defaults_to_one_millisecond(capsys):
+    assert main(["trace", "nucleo-f746", "--filter", "TIM1.CR1"]) == 0
+    assert "simulated 0.001000 s" in capsys.readouterr().err
+
+
+def test_bench_help_describes_every_option_with_its_default(capsys):
+    assert main(["bench", "--help"]) == 0
+    out = capsys.readouterr().out
+    for needle in ("--duration TIME", "(default 1s)", "--repeat N", "(default 3)", "--json FILE"):
+        assert needle in out, out
+
+
+def test_an_empty_output_name_and_a_huge_key_are_one_short_line(capsys):
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--vcd", ""], "--vcd: an empty file name")
+    err = _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--set", "a" * 5000 + "=1"])
+    assert len(err) <= 620
