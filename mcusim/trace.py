@@ -66,6 +66,7 @@ class VcdTrace:
         self._seq = itertools.count()
         self._mark = self._start = sim.kernel.now
         self.buses: list = []       # the bus waveform tracers (mcusim.tracebus)
+        self._waves: dict = {}      # var -> [Waveform, last tick whose edges are written]
         # one scope per board (a system's boards under <system>.<member>)
         system = len(sim.members) > 1 or board not in sim.members
         for mname, member in sim.members.items():
@@ -112,7 +113,41 @@ class VcdTrace:
 
     def _wire(self, scope: str, name: str, net, group: str | None = None) -> None:
         var = self._var(scope if group is None else group, scope, name, "wire", size=1, init=net.level)
-        net.listen(lambda n, var=var: self._now_change(var, n.level))
+        net.listen(lambda n, var=var: self._net_changed(var, n), waves=True)
+        if net.wave is not None:
+            self._waves[var] = [net.wave, self.sim.kernel.now]
+
+    # --- steady waveforms (fast engine): edges drawn from the descriptor as the trace streams -----------
+    def _net_changed(self, var, net) -> None:
+        now = self.sim.kernel.now
+        if var in self._waves:          # the old waveform's edges before now, then the new state
+            self._expand_waves(now)
+            del self._waves[var]
+        if net.wave is not None:
+            self._waves[var] = [net.wave, now]
+        self._now_change(var, net.level)
+
+    def _expand_waves(self, t: int, inclusive: bool = False) -> None:
+        """Write the edges of the active waveforms up to tick ``t`` (before it unless ``inclusive``),
+        all variables merged in time order: the VCD needs its timestamps in order."""
+        if not self._waves:
+            return
+        last = t if inclusive else t - 1
+        edges = []
+        for var, ent in self._waves.items():
+            w, done = ent
+            if done < last:
+                edges.extend((tick, var, lv) for tick, lv in w.edges(done, last))
+                ent[1] = last
+        if not edges:
+            return
+        edges.sort(key=lambda e: e[0])
+        if self.lag:
+            for tick, var, lv in edges:
+                heapq.heappush(self._heap, (tick, next(self._seq), var, lv))
+        else:
+            for tick, var, lv in edges:
+                self.w.change(var, self._ps(tick), lv)
 
     # --- reorder buffer ---------------------------------------------------------------------------
     def add_wire(self, scope: str, name: str, init: int = 0):
@@ -139,6 +174,8 @@ class VcdTrace:
 
     def _now_change(self, var, value) -> None:
         now = self.sim.kernel.now
+        if self._waves:
+            self._expand_waves(now)
         if self.lag:
             heapq.heappush(self._heap, (now, next(self._seq), var, value))
             self._drain(now - self.lag)
@@ -149,6 +186,8 @@ class VcdTrace:
         """Write every queued change at or before ``limit``; nothing older may be queued after."""
         if limit <= self._mark:
             return
+        if self._waves:
+            self._expand_waves(limit, inclusive=True)
         self._mark = limit
         heap = self._heap
         while heap and heap[0][0] <= limit:
@@ -209,6 +248,7 @@ class VcdTrace:
     def flush(self, now: int) -> None:
         """Write what can no longer change (older than ``now - lag``) and stamp the VCD there."""
         if not self.lag:
+            self._expand_waves(now, inclusive=True)
             self.w.flush(self._ps(now))
             return
         self._drain(now - self.lag)
@@ -222,6 +262,8 @@ class VcdTrace:
             if self.lag:
                 self._drain(now)
                 self._heap.clear()
+            else:
+                self._expand_waves(now, inclusive=True)
             self.w.close(self._ps(now))
             self._file.close()
 

@@ -182,6 +182,7 @@ class DcMotor:
         self._t0 = kernel.now
         self._x0 = (float(current), float(speed), float(angle))
         self._traj = None
+        self._memo = (None, 0, None)   # (segment, tick offset, state) of the last observation
         self._prev = None          # (t0, traj) of the previous segment, for state_at()
         self._es = 0               # electrical sign domain: None (no diode), +1, −1, 0 (DCM)
         self._s = 0                # mechanical: +1, −1, 0 (stuck)
@@ -251,9 +252,15 @@ class DcMotor:
     # ---- observers -------------------------------------------------------------------------------
     def _now_state(self):
         n = self.kernel.now - self._t0
-        if n == 0 or self._traj is None:
+        tr = self._traj
+        if n == 0 or tr is None:
             return self._x0
-        return self._at(self._traj, n)
+        memo = self._memo     # several observers read one tick (angle and current for a trace)
+        if memo[0] is tr and memo[1] == n:
+            return memo[2]
+        x = self._at(tr, n)
+        self._memo = (tr, n, x)
+        return x
 
     def state_at(self, tick: int):
         """(i, ω, θ) at ``tick``, which must lie in the current or the previous segment (≤ now)."""
