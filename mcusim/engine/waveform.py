@@ -50,7 +50,7 @@ class Waveform:
             b = min(b, self.end - 1)
         while t <= b:
             yield t, lv
-            t += (P - w) if lv else w
+            t += w if lv else P - w   # high for the width after a rise, low for the rest
             lv ^= 1
 
     def same_shape(self, other) -> bool:
