@@ -380,6 +380,12 @@ class DcMotor:
                 self._ev = None
             for g in guards:
                 g[5].on_guard(g[6])
+        ev = self._ev_passive
+        if ev is not None and ev.time == now:   # an encoder threshold due at this very tick: an
+            ev.cancel()                         # input change got here first; it still fires now
+            self._ev_passive = None
+            for g in self._passive:
+                g[5].on_guard(g[6])
 
     def on_guard(self, tag):
         i, w, th = self._x0
@@ -663,8 +669,7 @@ class DcMotor:
             return x
 
         passive = ()
-        if self._fast and limit is not None:  # encoder thresholds: located after the others, without
-            # ending the piece of a periodic drive
+        if self._fast:  # encoder thresholds: located after the others, without ending the segment
             passive = [g for g in guards if getattr(g[5], "passive_guards", False)]
             if passive:
                 guards = [g for g in guards if not getattr(g[5], "passive_guards", False)]
