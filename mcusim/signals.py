@@ -70,6 +70,8 @@ class _Carrier:
         if self._exp_ev is not None:
             self._exp_ev.cancel()
             self._exp_ev = None
+        else:
+            self._catch_up()    # no expander kept the stored level: bring it to now
         waves = self._wave_sources()
         if not waves:
             return
@@ -84,7 +86,7 @@ class _Carrier:
 
     def _expand(self) -> None:
         self._exp_ev = None
-        self._resolve()
+        self._resolve(expanding=True)
         if self._exp_ev is None:
             self.refresh()
 
@@ -141,7 +143,14 @@ class Net(_Carrier):
     def _wave_sources(self):
         return [v for v in self._drivers.values() if type(v) is not int]
 
-    def _resolve(self) -> None:
+    def _catch_up(self) -> None:
+        w = self.wave
+        if w is not None:
+            self._lvl = w.settled_level(w.kernel.now)
+
+    def _resolve(self, expanding: bool = False) -> None:
+        if self.wave is not None and self._exp_ev is None and not expanding:
+            self._catch_up()                # no expander kept it: the level now, not a stale one
         wave = None
         if self._forced is not None:
             new = self._forced
@@ -229,6 +238,8 @@ class Port(_Carrier):
         if value is not None:
             value = 1 if value else 0
         if self.wave is not None:
+            if self._exp_ev is None:
+                self._catch_up()
             self.wave = None
             self.refresh()
             changed = value != self._val
@@ -242,7 +253,9 @@ class Port(_Carrier):
         """From now on the output is ``wave`` (its level now must be the port's value now)."""
         if wave is self.wave:
             return
-        changed = wave.level != self._val   # (exact when an edge listener keeps _val up to date)
+        if self.wave is not None and self._exp_ev is None:
+            self._catch_up()
+        changed = wave.level != self._val
         self._val = wave.level
         self.wave = wave
         self.refresh()
@@ -251,7 +264,12 @@ class Port(_Carrier):
     def _wave_sources(self):
         return [self.wave] if self.wave is not None else []
 
-    def _resolve(self) -> None:  # an expander edge: the value follows the waveform
+    def _catch_up(self) -> None:
+        w = self.wave
+        if w is not None:
+            self._val = w.settled_level(w.kernel.now)
+
+    def _resolve(self, expanding: bool = True) -> None:  # an expander edge: the value follows the waveform
         v = self.wave.level
         if v != self._val:
             self._val = v

@@ -22,6 +22,8 @@ optimistic: a flagged period that does not fire costs only speed.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..plant import pwl
@@ -200,10 +202,14 @@ class ChunkTraj:
                 xe = S[:, p + 1] if p + 1 < npc else plan.table.states(self.x0, k)[1:]
                 ds = a11 * xs[:, 0] + a12 * xs[:, 1] + u1
                 de = a11 * xe[:, 0] + a12 * xe[:, 1] + u1
-                for kk in np.nonzero(ds * de < 0.0)[0]:
+                # a stationary point of i inside the piece: di/dt changes sign between its ends, or
+                # (complex eigenvalues) the piece is long enough to hold two of them
+                tr0 = self._build_piece(tuple(float(v) for v in xs[0]), pc[5], pc[6])
+                span = pc[0] * plan.inv
+                two = tr0.cplx and abs(tr0.lam1.imag) * span >= math.pi
+                for kk in (range(k) if two else np.nonzero(ds * de < 0.0)[0]):
                     tr = self._build_piece(tuple(float(v) for v in xs[kk]), pc[5], pc[6])
-                    te = tr.x1_extremum(pc[0] * plan.inv)
-                    if te is not None:
+                    for te in tr.x1_extrema(span):
                         best = max(best, abs(tr.eval(te)[0]))
         r = n - k * plan.P
         if r:   # the partial last period
@@ -216,8 +222,7 @@ class ChunkTraj:
                 tr = self._build_piece(xs, pc[5], pc[6])
                 span = min(pc[0], r - s) * plan.inv
                 best = max(best, abs(xs[0]), abs(tr.eval(span)[0]))
-                te = tr.x1_extremum(span)
-                if te is not None:
+                for te in tr.x1_extrema(span):
                     best = max(best, abs(tr.eval(te)[0]))
         return best
 

@@ -30,6 +30,13 @@ class Waveform:
     def level_at(self, t: int) -> int:
         return 1 if (t - self.rise) % self.period < self.width else 0
 
+    def settled_level(self, t: int) -> int:
+        """The level at ``t`` as far as this descriptor is valid: before ``end``, or its last
+        level before ``end`` (what an edge listener has been told)."""
+        if self.end is not None and t >= self.end:
+            t = self.end - 1
+        return 1 if (t - self.rise) % self.period < self.width else 0
+
     @property
     def level(self) -> int:
         """The level now."""

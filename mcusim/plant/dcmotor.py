@@ -333,8 +333,7 @@ class DcMotor:
         t = n * self._inv_hz
         x = tr.eval(t)
         p = abs(x[0])
-        te = tr.x1_extremum(t)
-        if te is not None:
+        for te in tr.x1_extrema(t):
             p = max(p, abs(tr.eval(te)[0]))
         return p
 
@@ -384,6 +383,7 @@ class DcMotor:
         if ev is not None and ev.time == now:   # an encoder threshold due at this very tick: an
             ev.cancel()                         # input change got here first; it still fires now
             self._ev_passive = None
+            self._peak = max(self._peak, abs(self._x0[0]))
             for g in self._passive:
                 g[5].on_guard(g[6])
 
@@ -587,6 +587,9 @@ class DcMotor:
     def _on_passive(self):
         self._ev_passive = None
         tr = self._traj
+        # the edge-by-edge engine starts a segment here, so its peak-current tracking samples this
+        # tick (with a complex eigenvalue pair it sees only segment ends): sample it too
+        self._peak = max(self._peak, abs(self._now_state()[0]))
         for g in self._passive:
             g[5].on_guard(g[6])
         if self._traj is tr and self._ev_passive is None:

@@ -188,19 +188,25 @@ class L6206Bridge(MosfetBridge):
         if self.drive_en:
             self.en.set(self.name + ".ocd", None)
         self.motor.input_changed()
+        if self.kernel.fast:
+            self._restart_edges()
+
+    def _restart_edges(self):
+        """Fast engine: input waveforms of different periods reach the motor edge by edge."""
+        if self._edge_ev is not None:
+            self._edge_ev.cancel()
+            self._edge_ev = None
+        if not self._periodic and not self.ocd_active and any(
+                n.wave is not None for n in (self.in1, self.in2, self.en)):
+            self._next_edge()
 
     def _on_pin(self, net):
-        if self.kernel.fast:
-            if self._edge_ev is not None:
-                self._edge_ev.cancel()
-                self._edge_ev = None
-            waves = [n.wave for n in (self.in1, self.in2, self.en) if n.wave is not None]
-            if waves or self._periodic:
-                self._legs_seen = None
-                self.motor.input_changed()      # the motor asks drive_schedule()
-                if waves and not self._periodic and not self.ocd_active:
-                    self._next_edge()           # waveforms of different periods: edge by edge
-                return
+        if self.kernel.fast and (self._periodic or self._edge_ev is not None or any(
+                n.wave is not None for n in (self.in1, self.in2, self.en))):
+            self._legs_seen = None
+            self.motor.input_changed()      # the motor asks drive_schedule()
+            self._restart_edges()
+            return
         if self.legs != self._legs_seen:
             self.motor.input_changed()
 

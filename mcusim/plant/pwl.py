@@ -31,6 +31,7 @@ costs ~2·log2(horizon ticks) extra evaluations.
 
 from __future__ import annotations
 
+import cmath
 import math
 
 __all__ = ["Traj", "affine2", "eig2", "first_fire", "first_order_x1", "first_order_x2", "hval", "static"]
@@ -67,6 +68,32 @@ class Traj:
         return (x0[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
                 x0[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
                 x0[2] + (b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2)
+
+    def x1_extrema(self, t_end: float):
+        """Times in (0, t_end) of the stationary points of x1 that can hold its largest |x1| there.
+
+        Real case: the one stationary point (:meth:`x1_extremum`). Complex case (``full`` kind, where
+        x1 = x1(0) + 2·Re(d·(e^{λt} − 1))): the stationary points are t_k = (π/2 − arg(d·λ) + kπ)/Im λ;
+        their swings about the steady value shrink as e^{Re λ·t}, alternating in sign, so the first
+        two hold the largest |x1|."""
+        if not self.cplx:
+            t = self.x1_extremum(t_end)
+            return () if t is None else (t,)
+        if self.kind != "full":
+            return ()
+        lam = self.lam1
+        z = self.d1[0] * lam
+        beta = lam.imag
+        if z == 0 or beta == 0.0:
+            return ()
+        phi = cmath.phase(z)
+        k = math.floor((phi - 0.5 * math.pi) / math.pi) + 1
+        out = []
+        for kk in (k, k + 1):
+            t = (0.5 * math.pi - phi + kk * math.pi) / beta
+            if 0.0 < t < t_end:
+                out.append(t)
+        return tuple(out)
 
     def x1_extremum(self, t_end: float):
         """Time in (0, t_end) where x1 has a stationary point, for the real two-exponential case

@@ -69,6 +69,7 @@ class Gpio(Peripheral):
         self.pins = [mcu.add_pin(f"P{port}{n}") for n in range(16)]
         self._routes: dict[int, tuple] = {}  # pin -> (timer, channel) while in AF mode
         self._listeners_on: set = set()
+        self._otyper_seen = 0
 
     # --- registers ------------------------------------------------------------------------
     def _read_idr(self, stored):
@@ -113,11 +114,14 @@ class Gpio(Peripheral):
             self._route(n, route)
             if route is not None:
                 port = self.mcu.periph[route[0]].oc[route[1]]
+                if (otyper ^ self._otyper_seen) >> n & 1:
+                    port.refresh()      # open drain needs every edge of a waveform, push-pull none
                 if port.wave is not None and not (otyper >> n) & 1:
                     net.set_wave(self.name, port.wave)   # fast engine: a push-pull PWM output
                     continue
                 level = self._af_level(n, port.value)
             net.set(self.name, level)
+        self._otyper_seen = otyper
 
     def _af_level(self, n, value):
         """An AF output in open-drain mode (OTYPER=1) drives only 0 and releases on 1."""

@@ -188,6 +188,7 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         self._lazy = [None] * 5         # time of a CCxIF set not scheduled as an event
         self._inp = {1: TiInput(self.kernel, 1, self._ti_apply), 2: TiInput(self.kernel, 2, self._ti_apply)}
         self._steady, self._uif_lazy = False, None   # fast engine (tim_steady)
+        self._wave_pol = [0] * 5
         for ch in CHANNELS:
             # outside encoder mode the inputs are ignored, so a waveform on them needs no edges
             self.ti[ch].listen(self._ti_net, waves=lambda: not self._sms)
@@ -317,8 +318,10 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
             self._ev_wrap.cancel()
             self._ev_wrap = None
         lazy, ev_cc, mode, ccr = self._lazy, self._ev_cc, self._mode, self._ccr
+        sr_before = self.value["SR"]
         if self._steady:
             self._steady_flush(now)
+            self._steady_ref(now)
             self._steady = False
         self._uif_lazy = None
         sr = self.value["SR"]
@@ -336,7 +339,7 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
             for ch in CHANNELS:
                 if mode[ch] >= 0 and ccr[ch] == cnt:
                     sr |= CCIF[ch]
-        if sr != self.value["SR"]:
+        if sr != sr_before:   # (flags set lazily above count too: an interrupt just enabled sees them)
             self.value["SR"] = sr
             self._irq()
         run = bool(self.value["CR1"] & CEN) and not self._sms and self._arr != 0
@@ -492,6 +495,8 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         self._sync()
         for ch in CHANNELS:
             self._ccie[ch] = bool(new & CCIF[ch])
+        if self._steady:      # flags due by now are set before the enable is looked at
+            self._steady_flush(self.kernel.now)
         self._irq()
         self._plan()
 

@@ -35,7 +35,7 @@ class SteadyStage:
         """Outputs can be waveforms until the next wrap: edge-aligned, no compare interrupts."""
         if not (self.kernel.fast and self._run and self._cms == 0):
             return False
-        if self._up and self._cnt > self._arr:
+        if self._cnt > self._arr:   # (ARR lowered below CNT: the counter runs on to 0 or its maximum)
             return False
         for ch in (1, 2, 3, 4):
             if self._mode[ch] >= 0 and self._ccie[ch]:
@@ -77,6 +77,7 @@ class SteadyStage:
         return Waveform(self.kernel, rise, P, width, t_wrap if self._ev_wrap is not None else None)
 
     def _publish_waves(self) -> None:
+        self._wave_pol = list(self._pol)    # OCx = OCxREF xor CCxP as published
         for ch in (1, 2, 3, 4):
             w = self._channel_wave(ch, self._t_wrap)
             port = self.oc[ch]
@@ -139,6 +140,14 @@ class SteadyStage:
                 self._lazy[ch] = t if limit is None or (t is not None and t < limit) else None
         if self._ev_wrap is None and not self.value["CR1"] & _UDIS and self._uif_lazy is None:
             self._uif_lazy = self._next_wrap(after)
+
+    def _steady_ref(self, now: int) -> None:
+        """OCxREF now of the channels whose output is a published waveform (no match event kept
+        _ref up to date; a switch to frozen mode keeps it)."""
+        for ch in (1, 2, 3, 4):
+            w = self.oc[ch].wave
+            if w is not None:
+                self._ref[ch] = w.level_at(now) ^ self._wave_pol[ch]
 
     def _steady_flush(self, now: int) -> None:
         """Set the flags of matches and wraps due by ``now`` (SR is about to be seen or changed)."""
