@@ -136,7 +136,6 @@ class ChunkTraj:
         P = plan.P
         q0 = max(0, min(kb - 1, after // P))
         npc = len(plan.pieces)
-        m2of = pwl.guard_m2
         for q in range(q0, kb):
             Xq = self.X[q]
             for p, pc in enumerate(plan.pieces):
@@ -158,8 +157,7 @@ class ChunkTraj:
                 n = te - ts
                 xe = tr.eval(n * inv)
                 ha, hb = pwl.hval(g, xs), pwl.hval(g, xe)
-                k = pwl.first_fire(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), m2of(g, tr.m2), 0, n,
-                                   ha, hb, strict, inv)
+                k = pwl.first_fire_monotone(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), 0, n, ha, hb, strict)
                 if k is not None:
                     return ts + k
         return None

@@ -559,13 +559,17 @@ class DcMotor:
                 return
             xa, xe = self._at(tr, after), tr.eval(end * inv)
             hval = pwl.hval
-            search = lambda g: pwl.first_fire(
-                lambda k: hval(g, tr.eval(k * inv)), pwl.guard_m2(g, tr.m2), after, end,
-                hval(g, xa), hval(g, xe), g[4], inv)
+            # θ is monotone up to the segment's own next event (a speed reversal is one of its
+            # guards): an encoder threshold fires once, found by a bracketing search
+            search = lambda g: pwl.first_fire_monotone(
+                lambda k: hval(g, tr.eval(k * inv)), after, end, hval(g, xa), hval(g, xe), g[4])
         best, firing = None, []
+        s = self._s
         for prov in self._providers:
             if getattr(prov, "passive_guards", False):
                 for g in prov.plant_guards():
+                    if g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
+                        continue
                     n = search(g)
                     if n is None or (best is not None and n > best):
                         continue

@@ -229,6 +229,33 @@ def guard_m2(g, m2) -> float:
     return abs(g[0]) * m2[0] + abs(g[1]) * m2[1] + abs(g[2]) * m2[2]
 
 
+def first_fire_monotone(h_at, na: int, nb: int, ha: float, hb: float, strict: bool):
+    """:func:`first_fire` for a guard known to be monotone on [na, nb] (its fired ticks are a
+    suffix): the first fired tick in (na, nb], or None, bracketed by secant steps with a bisection
+    fallback. Exact for the same reason as first_fire: the answer n is fired and n − 1 is not."""
+    if not (hb < 0.0 if strict else hb <= 0.0):
+        return None
+    lo, hi, hlo, hhi = na, nb, ha, hb
+    while hi - lo > 1:
+        d = hlo - hhi
+        m = lo + int((hi - lo) * (hlo / d)) if d > 0.0 else (lo + hi) >> 1
+        if m <= lo or m >= hi:
+            m = lo + 1 if m <= lo else hi - 1
+        hm = h_at(m)
+        if hm < 0.0 if strict else hm <= 0.0:
+            hi, hhi = m, hm
+            if m - lo > 1 and hi - lo > 4 and (lo + hi) >> 1 != m:   # secant from above: bracket
+                mb = (lo + hi) >> 1
+                hmb = h_at(mb)
+                if hmb < 0.0 if strict else hmb <= 0.0:
+                    hi, hhi = mb, hmb
+                else:
+                    lo, hlo = mb, hmb
+        else:
+            lo, hlo = m, hm
+    return hi
+
+
 def first_fire(h_at, m2: float, na: int, nb: int, ha: float, hb: float, strict: bool, inv_hz: float):
     """First integer tick n in (na, nb] where the guard has fired, or ``None``.
 
