@@ -74,11 +74,35 @@ def test_engines_agree_on_the_elementall_bench_command(tmp_path):
                       "--set", "cmd_vel.angular=0.2"])
 
 
+TRIP_SCENARIO = """
+[scenario]
+board = "pro-mini"
+duration = "0.3s"
+description = "Gentle start, a step up, then a reversal into the BTS7960's current limit."
+
+[[at]]
+time = "0s"
+publish = { velocity = 5 }
+
+[[at]]
+time = "120ms"
+publish = { velocity = 25 }
+
+[[at]]
+time = "200ms"
+publish = { velocity = -25 }
+"""
+
+
 def test_engines_agree_through_bts7960_current_limit_trips(tmp_path):
-    """A low current limit under load: the trip tick (located inside a chunk of periods), the IS
-    fault current the ADC samples and the firmware's reaction must be the same in both engines."""
-    _agree(tmp_path, ["pro-mini", "--duration", "0.2s", "--set", "velocity=-60", "--set", "ibt2.I_CLH=4",
-                      "--set", "ibt2.I_CLL=3", "--set", "motor.load_torque=5"])
+    """A reversal after the PWM has run in whole-period chunks drives the current into a lowered
+    limit: the trip tick (located inside the period where it happens), the IS fault current the
+    ADC samples and the firmware's driver-fault reaction must be the same in both engines."""
+    sc = tmp_path / "trip.toml"
+    sc.write_text(TRIP_SCENARIO)
+    _agree(tmp_path, ["pro-mini", "--scenario", str(sc), "--set", "ibt2.I_CLH=30", "--set", "ibt2.I_CLL=25"])
+    _agree(tmp_path / "startup", ["pro-mini", "--duration", "0.2s", "--set", "velocity=-60",
+                                  "--set", "ibt2.I_CLH=4", "--set", "ibt2.I_CLL=3", "--set", "motor.load_torque=5"])
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

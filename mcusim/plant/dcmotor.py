@@ -373,6 +373,15 @@ class DcMotor:
                 self._ev = None
             for g in guards:
                 g[5].on_guard(g[6])
+        ev = self._ev_passive
+        if ev is not None and ev.time == now:
+            # a passive guard (an encoder threshold) located at this very tick, reached by another
+            # event of the tick first (an input change): it fires now, as a pending guard does,
+            # before the rebuild cancels its event (else it is located again one tick later)
+            ev.cancel()
+            self._ev_passive = None
+            for g in self._passive:
+                g[5].on_guard(g[6])
 
     def on_guard(self, tag):
         i, w, th = self._x0
@@ -656,8 +665,8 @@ class DcMotor:
             return x
 
         passive = ()
-        if self._fast and limit is not None:  # encoder thresholds: located after the others, without
-            # ending the piece of a periodic drive
+        if self._fast:  # encoder thresholds: located after the others, without ending the
+            # segment (a piece of a periodic drive, or a constant drive's segment)
             passive = [g for g in guards if getattr(g[5], "passive_guards", False)]
             if passive:
                 guards = [g for g in guards if not getattr(g[5], "passive_guards", False)]
