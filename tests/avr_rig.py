@@ -11,10 +11,10 @@ from mcusim.registers import Bus
 from mcusim.time import TimeBase
 
 
-def bare_atmega328p(cpu: bool = False) -> Mcu:
+def bare_atmega328p(cpu: bool = False, engine: str = "reference") -> Mcu:
     tb = TimeBase([16_000_000])
     clock = tb.clock("cpu", 16_000_000)
-    mcu = Mcu("atmega328p", Kernel(tb), Bus(), clock)
+    mcu = Mcu("atmega328p", Kernel(tb, engine=engine), Bus(), clock)
     mcu.irq = mcu.nvic = AvrInterrupts()
     mcu.bus.attach_registers(0, AvrCpuRegs("CPU", mcu))
     if cpu:

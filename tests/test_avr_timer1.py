@@ -24,8 +24,8 @@ DUAL = {1, 2, 3, 8, 9, 10, 11}
 
 
 class Rig:
-    def __init__(self):
-        self.mcu = bare_atmega328p()
+    def __init__(self, engine="reference"):
+        self.mcu = bare_atmega328p(engine=engine)
         self.kernel, self.bus, self.clock = self.mcu.kernel, self.mcu.bus, self.mcu.core_clock
         self.tb = self.kernel.timebase
         self.t1 = Timer1("TIMER1", self.mcu, self.clock)
@@ -611,3 +611,114 @@ def test_dual_slope_tcnt_and_top_writes_anywhere_match_oracle_with_interrupt_lin
             assert [(t // NP, v) for t, v in rig.edges[ch] if t > 0] == orc.edges[ch], ch
     assert seen == want
     assert rig.r(TIFR1) == orc.flags
+
+
+@given(st.sampled_from(PWM_MODES), st.integers(3, 60), st.sampled_from([1, 8]), st.data())
+@settings(max_examples=60, deadline=None)
+def test_steady_waveforms_match_per_clock_oracle_in_fast_engine(mode, top, n, data):
+    """Fast engine: connected PWM outputs are published as steady waveforms (their edges reach the
+    listeners from the descriptor through the port's expander), flags are set lazily, events stay
+    only for enabled interrupts and pending OCR buffers. Against the per-clock oracle: every output
+    edge, the level read from the descriptor at random ticks, the interrupt lines, TCNT1 and TIFR1,
+    through OCR/TOP/TCNT writes, TIMSK changes and flag clears at any tick."""
+    if mode in FIXED_TOP:
+        top = FIXED_TOP[mode]
+    tsrc = VARIABLE_TOP.get(mode)
+    ocr = st.integers(0, top if tsrc is None else top + 1)
+    ocra = top if tsrc == "A" else data.draw(ocr)
+    ocrb = data.draw(ocr)
+    coma = data.draw(st.sampled_from([1, 2, 3])) if tsrc == "A" else data.draw(st.sampled_from([2, 3]))
+    comb = data.draw(st.sampled_from([2, 3]))
+    timsk = data.draw(st.sampled_from([0, 0, 0, TOV | OCFA | OCFB | ICF, TOV, OCFB]))
+    rig = Rig(engine="fast")
+    rig.w16(ICR1, top if tsrc == "I" else 0)
+    rig.w16(OCR1A, ocra)
+    rig.w16(OCR1B, ocrb)
+    rig.w(TIMSK1, timsk)
+    rig.mode(mode, cs=PRESCALE_CS[n], com=(coma << 6) | (comb << 4))
+    orc = Oracle(mode, ocr=(ocra, ocrb), icr=top if tsrc == "I" else 0, com=(coma, comb))
+    NP = n * rig.P
+    seen, want = [], []
+    rig.mcu.irq.line_listeners.append(
+        lambda v, lv: lv and v in VECTOR_FLAG and seen.append((rig.kernel.now // NP, VECTOR_FLAG[v])))
+    waved = set()
+    levels = {"A": [], "B": []}
+
+    def run(clocks):
+        for _ in range(clocks):
+            before = orc.flags
+            orc.clock()
+            new = orc.flags & ~before & rig.r(TIMSK1)
+            want.extend((orc.k, b) for b in (TOV, OCFA, OCFB, ICF) if new & b)
+        for ch in "AB":
+            if rig.t1.oc[ch].wave is not None:
+                waved.add(ch)
+        rig.kernel.run_until(orc.k * NP + data.draw(st.integers(0, n - 1)))
+        for ch in "AB":
+            if rig.t1.oc[ch].wave is not None:
+                waved.add(ch)
+            if orc.output(ch) is not None:
+                levels[ch].append((rig.t1.oc[ch].value, orc.latch[ch]))
+        assert rig.t1.counter == orc.c
+
+    run(data.draw(st.integers(0, 3 * top)))
+    for _ in range(data.draw(st.integers(1, 5))):
+        op = data.draw(st.sampled_from(["ocr", "ocr", "tcnt", "top", "clear", "read", "timsk"]))
+        if op == "tcnt":
+            v = data.draw(st.integers(0, top))
+            rig.w16(TCNT1, v)
+            orc.write_tcnt(v)
+        elif op == "ocr":
+            ch = "B" if tsrc == "A" else data.draw(st.sampled_from("AB"))
+            v = data.draw(ocr)
+            rig.w16(OCR1A if ch == "A" else OCR1B, v)
+            orc.write_ocr(ch, v)
+        elif op == "top" and tsrc is not None:
+            v = data.draw(st.integers(3, top + 5))
+            if tsrc == "A":
+                rig.w16(OCR1A, v)
+                orc.write_ocr("A", v)
+            else:
+                rig.w16(ICR1, v)
+                orc.icr = v
+        elif op == "clear":
+            b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
+            rig.w(TIFR1, b)
+            orc.flags &= ~b
+        elif op == "read":
+            assert rig.r(TIFR1) == orc.flags
+        elif op == "timsk":      # flags cleared first: a line then rises only with a new flag
+            rig.w(TIFR1, TOV | OCFA | OCFB | ICF)
+            orc.flags = 0
+            rig.w(TIMSK1, data.draw(st.sampled_from([0, TOV, OCFA | OCFB])))
+        run(data.draw(st.integers(0, 2 * top + 3)))
+    run(4 * (top + 5))
+    for ch in "AB":
+        if orc.output(ch) is not None:
+            assert [(t // NP, v) for t, v in rig.edges[ch] if t > 0] == orc.edges[ch], ch
+            assert all(a == b for a, b in levels[ch]), ch
+    assert seen == want
+    assert rig.r(TIFR1) == orc.flags
+
+
+def test_timerone_pwm_is_a_steady_waveform_without_timer_events_in_fast_engine():
+    """TimerOne's 20 kHz PFC PWM (ICR1 = 400, OCR1A = 100, COM1A = 10, no interrupt): under the fast
+    engine OC1A carries one waveform (period 800 cycles, high 200 centred on BOTTOM) and the timer
+    schedules no event at all; TIFR1 still shows the flags of the clocks passed when read."""
+    rig = Rig(engine="fast")
+    for ch in "AB":
+        rig.t1.oc[ch]._listeners.clear()
+    rig.w(TCCR1B, WGM13)
+    rig.w16(ICR1, 400)
+    rig.w16(OCR1A, 100)
+    rig.w(TCCR1A, COM1A1)
+    rig.w(TCCR1B, WGM13 | CS10)
+    rig.run_clocks(1000)
+    w = rig.t1.oc["A"].wave
+    assert w is not None and (w.period, w.width) == (800 * rig.P, 200 * rig.P)
+    assert rig.t1._ev is None
+    # TCNT1 = 100 on the way down after clock 700: the down-count match sets OC1A on clock 701, the
+    # up-count match leaving 100 clears it on clock 901 (BOTTOM is left on clock 801)
+    assert [w.level_at(k * rig.P) for k in (700, 701, 900, 901, 1500, 1501)] == [0, 1, 1, 0, 0, 1]
+    rig.run_clocks(1)
+    assert rig.r(TIFR1) == TOV | OCFA | OCFB | ICF     # OCR1B = 0 matches at BOTTOM

@@ -4,7 +4,9 @@ Every check runs one command line under both engines and compares the VCD signal
 log and the summary (:mod:`engine_compare`): digital changes identical tick for tick, plant values
 within 1e-9 relative. The cases are the shipped scenarios, the benches' fixed commands, and
 hypothesis-generated runs of the nucleo-f746 (set-point steps and reversals, load torques, motors
-driven into the L6206 over-current trip, saturated duty, stiff and light shafts).
+driven into the L6206 over-current trip, saturated duty, stiff and light shafts), and of the
+pro-mini (TimerOne PFC PWM into the BTS7960 bridge: velocity steps and reversals, load torques,
+current-limit trips) and the elementall rover (four pro-minis, battery, I2C).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ def _agree(tmp_path, argv):
 
 @pytest.mark.parametrize("board,name,duration", [("nucleo-f746", "step_response", "0.3s"),
                                                  ("nucleo-f746", "thesis_master_slave", "0.3s"),
-                                                 ("pro-mini", "promini_velocity_load", "0.1s")])
+                                                 ("pro-mini", "promini_velocity_load", "0.8s")])
 def test_engines_agree_on_shipped_scenario(tmp_path, board, name, duration):
     _agree(tmp_path, [board, "--scenario", str(SCENARIOS / f"{name}.toml"), "--duration", duration])
 
@@ -57,3 +59,59 @@ def test_engines_agree_on_generated_nucleo_runs(tmp_path_factory, p1, p2, load, 
     _agree(tmp, ["nucleo-f746", "--duration", f"{ms}ms", "--set", f"/motor1/set_pos={p1!r}",
                  "--set", f"/motor2/set_pos={p2!r}", "--set", f"motor1.load_torque={load!r}",
                  "--set", f"motor2.J={5e-6 * j_scale!r}", "--set", f"bridgeA.I_ocd={i_ocd!r}"])
+
+
+def test_engines_agree_on_the_promini_bench_command(tmp_path):
+    """The bench's fixed command (20 rpm): TimerOne's PWM as a steady waveform, the BTS7960's drive
+    schedule and whole-period chunks with the encoder's edges located inside them."""
+    _agree(tmp_path, ["pro-mini", "--duration", "0.3s", "--set", "velocity=20"])
+
+
+def test_engines_agree_on_the_elementall_bench_command(tmp_path):
+    """Four pro-minis driving the rover from the battery: the supply charge integrated over chunks
+    feeds the battery model, whose voltage steps feed the bridges back."""
+    _agree(tmp_path, ["elementall", "--duration", "0.4s", "--set", "cmd_vel.linear=0.5",
+                      "--set", "cmd_vel.angular=0.2"])
+
+
+TRIP_SCENARIO = """
+[scenario]
+board = "pro-mini"
+duration = "0.3s"
+description = "Gentle start, a step up, then a reversal into the BTS7960's current limit."
+
+[[at]]
+time = "0s"
+publish = { velocity = 5 }
+
+[[at]]
+time = "120ms"
+publish = { velocity = 25 }
+
+[[at]]
+time = "200ms"
+publish = { velocity = -25 }
+"""
+
+
+def test_engines_agree_through_bts7960_current_limit_trips(tmp_path):
+    """A reversal after the PWM has run in whole-period chunks drives the current into a lowered
+    limit: the trip tick (located inside the period where it happens), the IS fault current the
+    ADC samples and the firmware's driver-fault reaction must be the same in both engines."""
+    sc = tmp_path / "trip.toml"
+    sc.write_text(TRIP_SCENARIO)
+    _agree(tmp_path, ["pro-mini", "--scenario", str(sc), "--set", "ibt2.I_CLH=30", "--set", "ibt2.I_CLL=25"])
+    _agree(tmp_path / "startup", ["pro-mini", "--duration", "0.2s", "--set", "velocity=-60",
+                                  "--set", "ibt2.I_CLH=4", "--set", "ibt2.I_CLL=3", "--set", "motor.load_torque=5"])
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(v=st.floats(-80.0, 80.0), load=st.floats(-25.0, 25.0), i_cl=st.sampled_from([60.0, 15.0, 9.0]),
+       j_scale=st.sampled_from([0.5, 1.0, 4.0]), ms=st.integers(60, 200))
+def test_engines_agree_on_generated_promini_runs(tmp_path_factory, v, load, i_cl, j_scale, ms):
+    """Velocity steps (either direction, from standstill), load torques helping or opposing the
+    motion, current limits from the default to low enough to trip, light and heavy shafts."""
+    tmp = tmp_path_factory.mktemp("eqpm")
+    _agree(tmp, ["pro-mini", "--duration", f"{ms}ms", "--set", f"velocity={v!r}",
+                 "--set", f"motor.load_torque={load!r}", "--set", f"motor.J={2e-5 * j_scale!r}",
+                 "--set", f"ibt2.I_CLH={i_cl!r}", "--set", f"ibt2.I_CLL={0.7 * i_cl!r}"])

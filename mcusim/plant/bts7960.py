@@ -83,6 +83,7 @@ from mcusim.plant.hbridge import MosfetBridge
 from ..errors import ConfigError, McusimError
 from ..kernel import PRIO_PLANT
 from ..signals import AnalogNet, Net
+from .bts7960_steady import SteadyDrive
 from .dcmotor import _check_overrides
 
 
@@ -134,7 +135,7 @@ class _Half:
         self.release_ev = None
 
 
-class Bts7960Bridge(MosfetBridge):
+class Bts7960Bridge(SteadyDrive, MosfetBridge):
     """``Bts7960Bridge(kernel, motor, rpwm, lpwm, r_en=None, l_en=None, name="ibt2", *, params=None,
     is_r=None, is_l=None, cl_action="other", **overrides)``.
 
@@ -179,10 +180,15 @@ class Bts7960Bridge(MosfetBridge):
         self._inv_hz = 1.0 / kernel.timebase.base_hz
         self._hist = deque(maxlen=_HISTORY)
         self.trip_log = deque(maxlen=256)   # (tick, side, switch) of the latest trips
+        self._cacc = None            # fast engine: supply account of a chunk of whole periods
+        self._periodic = False       # fast engine: the motor follows drive_schedule()
+        self._sched = None           # fast engine: (anchor, period, ((offset, legs), ...))
+        self._edge_ev = None         # fast engine: edges of waveforms the schedule does not cover
         self._record()
         for net in (rpwm, lpwm, r_en, l_en):
             if net is not None:
-                net.listen(self._on_pin)
+                # fast engine: waveforms are handled here (drive_schedule), not edge by edge
+                net.listen(self._on_pin, waves=bool(getattr(kernel, "fast", False)))
         motor.add_guard_provider(self)
         motor.attach_driver(self)
 
@@ -229,8 +235,8 @@ class Bts7960Bridge(MosfetBridge):
         r, l_ = self._half["R"], self._half["L"]
         return (self._leg_of("R"), self._leg_of("L"), r.fault or r.overtemp, l_.fault or l_.overtemp)
 
-    def _record(self):
-        snap = self._snapshot()
+    def _record(self, snap=None):
+        snap = self._snapshot() if snap is None else snap
         now = self.kernel.now
         hist = self._hist
         if hist and hist[-1][0] == now:
@@ -271,7 +277,11 @@ class Bts7960Bridge(MosfetBridge):
         since the previous call, exact to the closed form of the motor; resets the count."""
         seg = self._seg
         now = self.kernel.now
-        if seg is not None and seg[3] and now > seg[0]:
+        if self._cacc is not None:
+            acc = self._cacc
+            self._close_chunk(now)
+            self._cacc = (now,) + acc[1:]
+        elif seg is not None and seg[3] and now > seg[0]:
             m = self.motor
             if seg[0] < m._t0:
                 raise McusimError(f"{self.name}: supply accounting lost a motor segment")
@@ -292,10 +302,29 @@ class Bts7960Bridge(MosfetBridge):
     def _account(self):
         """At a motor segment start (called from plant_guards): close the account of the segment
         that just ended at now, open one for the new segment."""
+        self._close_segment()
+        m = self.motor
+        now = self.kernel.now
+        if m._driver is not self:
+            self._seg = (now, 0.0, 0.0, 0, 0.0, 1.0, 0.0, 0.0)
+            return
+        es = m._es
+        # fast engine: a piece of a periodic drive was built from the schedule, not drive_state()
+        legs = self.legs if self._periodic else self._legs_seen
+        c, v, rbr = self._supply_coeffs(legs, es)
+        p = m.params
+        x0 = m._x0
+        self._seg = (now, x0[0], x0[2], c, v, p.R + rbr, p.L, p.K)
+
+    def _close_segment(self):
+        """Close the account of the motor segment (or chunk of periods) that just ended at now."""
         m = self.motor
         now = self.kernel.now
         seg = self._seg
-        if seg is not None and seg[3] and now > seg[0]:      # only segments that move charge
+        if self._cacc is not None:
+            self._close_chunk(now)
+            self._cacc = None
+        elif seg is not None and seg[3] and now > seg[0]:      # only segments that move charge
             prev = m._prev
             if prev is None or prev[0] > seg[0]:
                 raise McusimError(f"{self.name}: supply accounting lost a motor segment")
@@ -303,11 +332,10 @@ class Bts7960Bridge(MosfetBridge):
             # projected, e.g. i := 0 at a current-zero event)
             i1, _, th1 = prev[1].eval((now - prev[0]) * self._inv_hz)
             self._close(seg, now, i1, th1)
-        if m._driver is not self:
-            self._seg = (now, 0.0, 0.0, 0, 0.0, 1.0, 0.0, 0.0)
-            return
-        es = m._es
-        legs = self._legs_seen
+        self._seg = None
+
+    def _supply_coeffs(self, legs, es):
+        """(c, V, R_br) of leg states ``legs`` in conduction domain ``es``: I_s = c·i, v_m = V − R_br·i."""
         key = (legs, es)
         ent = self._supply_cache.get(key)
         if ent is None:
@@ -320,12 +348,9 @@ class Bts7960Bridge(MosfetBridge):
                 c = (a == "H") - (b != "L")
             else:                                     # i < 0: A's high-side diode, out of B
                 c = (a != "L") - (b == "H")
-            d = self.drive_state()
+            d = self.drive_for(legs)
             ent = self._supply_cache[key] = (c, d[1] if es is not None and es < 0 else d[0], d[2])
-        c, v, rbr = ent
-        p = m.params
-        x0 = m._x0
-        self._seg = (now, x0[0], x0[2], c, v, p.R + rbr, p.L, p.K)
+        return ent
 
     # ---- IS outputs ------------------------------------------------------------------------------
     def is_current(self, side: str, tick: int | None = None) -> float:
@@ -338,6 +363,9 @@ class Bts7960Bridge(MosfetBridge):
                 break
         if snap is None:
             raise ValueError(f"{self.name}: IS at tick {t} is older than the remembered state changes")
+        if snap[0] == "w":          # fast engine: the inputs were steady waveforms from then on
+            legs = self._legs_from(snap[1], t)
+            snap = (legs[0], legs[1], False, False)
         p = self.params
         k = 0 if side == "R" else 1
         if snap[2 + k]:
@@ -437,6 +465,13 @@ class Bts7960Bridge(MosfetBridge):
         for h in self._half.values():  # an INH low pulse resets the thermal latch
             if h.overtemp and h.en is net and not net.level:
                 self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
+        if self.kernel.fast and (self._periodic or self._waves()):
+            if self._edge_ev is not None:
+                self._edge_ev.cancel()
+                self._edge_ev = None
+            self._legs_seen = None
+            self.motor.input_changed()      # the motor asks drive_schedule()
+            return
         if self.legs != self._legs_seen:
             self._check_now()
             self._record()

@@ -17,7 +17,8 @@ Modelled
 * A conversion starts on the first ADC clock edge strictly after the tick ADSC is written 1 (so 1 to
   N CPU cycles of synchronisation; ADEN and ADSC written together start at ``t_en + N * P``). It
   takes 13 ADC clocks, 25 for the first conversion after ADEN is set. The input is sampled (the
-  AnalogNet's ``voltage(t)`` is called with that tick) 1.5 ADC clocks after the start (13.5 for the
+  AnalogNet's ``voltage(t)`` is called with that tick, after the other hardware events of that tick,
+  so a PWM edge of the same tick is seen switched) 1.5 ADC clocks after the start (13.5 for the
   first). At the end ADCL/ADCH are written, ADIF is set and, in single-conversion mode, ADSC is
   cleared. Writing ADSC = 0 has no effect; ADSC = 1 while ADEN = 0 is ignored.
 * Free-running mode (ADATE = 1, ADTS = 000): the next conversion starts at the completion tick,
@@ -49,6 +50,7 @@ from fractions import Fraction
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.firmware import Signal
+from mcusim.kernel import PRIO_HW
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import exact_voltage as _exact
 
@@ -198,7 +200,9 @@ class Adc(Peripheral):
         self._first = False
         self._busy, self._t_start, self._admux_latched, self._result = True, t_start, None, None
         self._t_sample = t_start + (pt * (27 if first else 3)) // 2
-        self._ev_sample = self.kernel.at(self._t_sample, self._sample)
+        # after every hardware event of the sampling tick (a PWM edge of that tick is seen switched,
+        # whichever was scheduled first; the fast engine's waveforms give the same)
+        self._ev_sample = self.kernel.at(self._t_sample, self._sample, prio=PRIO_HW + 1)
         self._ev_done = self.kernel.at(t_start + pt * (25 if first else 13), self._complete)
 
     def _abort(self):

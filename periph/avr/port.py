@@ -3,6 +3,7 @@
 * DDxn = 1: the pin is an output driven by PORTxn, unless an alternate function that overrides
   it (a timer's OC1A/OC1B with COM1x != 0) is connected: then the timer's waveform drives it. As
   the datasheet says, OC1x reaches the pin only while DDR makes it an output.
+  Under the fast engine a timer's steady waveform passes through to the pin's net as it is.
 * DDxn = 0: input; PORTxn = 1 enables the pull-up (the net reads 1 when nothing drives it).
 * Reading PINx returns the pin levels. Writing 1 to PINxn toggles PORTxn.
 
@@ -39,7 +40,8 @@ class AvrPort(Peripheral):
         self.overrides[n] = port
         # a change of the alternate function's output concerns pin n only (the other pins' drive
         # depends on DDR/PORT, and every write of those updates them all)
-        port.listen(lambda _p, n=n: self._update_pin(n, self.value["DDR"], self.value["PORT"]))
+        # fast engine: a steady waveform (a timer's PWM) passes through an output pin as it is
+        port.listen(lambda _p, n=n: self._update_pin(n, self.value["DDR"], self.value["PORT"]), waves=True)
         self._update(0, 0)
 
     def _read_pin(self, stored):
@@ -64,6 +66,10 @@ class AvrPort(Peripheral):
         level = None
         if out:
             alt = self.overrides.get(n)
+            if alt is not None and alt.wave is not None:
+                net.pull = None
+                net.set_wave(self.name, alt.wave)
+                return
             level = alt.value if alt is not None and alt.value is not None else (port >> n) & 1
         net.pull = 1 if (not out and (port >> n) & 1) else None
         net.set(self.name, level)

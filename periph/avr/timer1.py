@@ -69,6 +69,8 @@ from mcusim.errors import UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import Net, Port
 
+from .timer1_steady import SteadyOutputs
+
 # flag / enable bits, the same positions in TIFRn and TIMSKn
 TOV, OCFA, OCFB, ICF = 1 << 0, 1 << 1, 1 << 2, 1 << 5
 OCF = {"A": OCFA, "B": OCFB}
@@ -98,7 +100,7 @@ def com_behaviour(kind: str, top, ch: str, com: int):
     return "pwm", (0 if com == 2 else 1)
 
 
-class AvrTimer(Peripheral):
+class AvrTimer(SteadyOutputs, Peripheral):
     """Event-driven engine shared by Timer0 and Timer1.  Subclasses give registers and names."""
 
     BUS_WIDTH = 1
@@ -335,13 +337,16 @@ class AvrTimer(Peripheral):
             self._ev.cancel()
             self._ev = None
         if not self._run:
+            if self.kernel.fast:
+                self._publish_waves(k, False)
             return
         want = self.value[self.TIMSK] & ~self.value[self.TIFR]
         pend = self._upd is not None and self._pending()
+        waved = self._publish_waves(k, pend) if self.kernel.fast else ()
         cands = []
         pins = False
         for ch in self.CHANNELS:
-            pin = self._need_pin(ch, k, pend)
+            pin = ch not in waved and self._need_pin(ch, k, pend)
             if pin and self._act[ch][0] == "pwm" and not pins:
                 pins = self._top_acts(ch, k, pend)
             if pin or want & OCF[ch]:
@@ -360,6 +365,8 @@ class AvrTimer(Peripheral):
 
     def _on_clock(self, K):
         self._ev = None
+        if self.kernel.fast:
+            self._wave_latch(K * self._N * self._P - 1)   # the level before this clock
         self._sync_flags(K - 1)
         c, d = self._state(K - 1)
         T = self._top
@@ -413,6 +420,8 @@ class AvrTimer(Peripheral):
         self._plan(K)
 
     def _drive(self, ch):
+        if self.oc[ch].wave is not None:
+            return      # fast engine: _plan, which always follows, republishes or withdraws it
         self.oc[ch].set(None if self._act[ch][0] is None else self._latch[ch])
 
     # ------------------------------------------------------------------ configuration
@@ -423,6 +432,8 @@ class AvrTimer(Peripheral):
         """Freeze the current counter state as the anchor (call before changing the trajectory)."""
         k = self._clock_now()
         self._sync_flags(k)
+        if self.kernel.fast:
+            self._wave_latch(self.kernel.now)
         self._c0, self._d0 = self._state(k)
         self._k0 = k
 
