@@ -120,6 +120,7 @@ class ChunkTraj:
         self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1
+        self._piece_memo = (None, None, None)   # (tick offset of a piece start, its state, closed form)
 
     def first_fire(self, g, after: int, inv: float):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
@@ -134,9 +135,10 @@ class ChunkTraj:
         kb = int(np.argmax(fired))
         plan = self.plan
         P = plan.P
-        q0 = max(0, min(kb - 1, after // P))
+        # θ is monotone: the crossing lies in the period ending at the first fired boundary kb
+        q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
-        for q in range(q0, kb):
+        for q in range(q0, min(q0 + 2, self.periods)):
             Xq = self.X[q]
             for p, pc in enumerate(plan.pieces):
                 ts = q * P + plan.starts[p]
@@ -168,21 +170,23 @@ class ChunkTraj:
             return self.x0
         plan = self.plan
         k, r = divmod(n, plan.P)
-        xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
-        if r == 0:
-            return xk
         p = 0
         starts = plan.starts
         while p + 1 < len(starts) and starts[p + 1] <= r:
             p += 1
+        rest = r - starts[p]
+        memo = self._piece_memo
+        if rest and memo[0] == n - rest:    # several reads inside one piece: one closed form
+            return memo[2].eval(rest * plan.inv)
+        xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
         if p:
             v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
             xk = (float(v[0]), float(v[1]), float(v[2]))
-        rest = r - starts[p]
         if rest == 0:
             return xk
-        drive, mode = plan.pieces[p][5], plan.pieces[p][6]
-        return self._build_piece(xk, drive, mode).eval(rest * plan.inv)
+        tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
+        self._piece_memo = (n - rest, xk, tr)
+        return tr.eval(rest * plan.inv)
 
     def peak(self, n: int) -> float:
         """Largest |i| over the first n ticks: at every piece boundary and at the current's

@@ -102,7 +102,6 @@ class SteadyDrive:
         self._record()
         if waves and self._edge_ev is None:
             self._next_edge()
-        return None
 
     # ---- edge by edge while waveforms are present but no schedule covers them ------------------
     def _next_edge(self):
@@ -170,7 +169,6 @@ class SteadyDrive:
         plan = tr.plan
         P, inv, Q = plan.P, self._inv_hz, plan.Q
         coef = self._chunk_coeffs(tr, t_c, sched, R)
-        npc = len(plan.pieces)
         k, r = divmod(n, P)
         total = 0.0
         if k:
