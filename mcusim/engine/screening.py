@@ -88,16 +88,17 @@ class PeriodPlan:
             ab = np.abs(S[:, :2])
             xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
             D = xb @ absA.T + absu                 # bound of |di/dt|, |dω/dt|
-            anybad = None
-            for g in pc[4] + extra_guards:
-                ci, cw, ct, c0 = g[0], g[1], g[2], g[3]
-                hs = S[:, 0] * ci + S[:, 1] * cw + S[:, 2] * ct + c0
-                he = E[:, 0] * ci + E[:, 1] * cw + E[:, 2] * ct + c0
-                lip = tau * (abs(ci) * D[:, 0] + abs(cw) * D[:, 1] + abs(ct) * xb[:, 1])
-                scale = (np.abs(S[:, 0] * ci) + np.abs(S[:, 1] * cw) + np.abs(S[:, 2] * ct) + abs(c0)) * MARGIN
-                bad = (hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)
-                anybad = bad if anybad is None else (anybad | bad)
-            if anybad is not None and anybad.any():
+            guards = pc[4] + extra_guards
+            if not guards:
+                continue
+            G = np.array([g[:4] for g in guards], dtype=float)       # rows (ci, cw, cθ, c0)
+            aG = np.abs(G)
+            hs = S @ G.T                                              # (periods, guards)
+            he = E @ G.T
+            lip = tau * (D @ aG[:, :2].T + xb[:, 1:2] * aG[:, 2])
+            scale = (np.abs(S[:, :3]) @ aG[:, :3].T + aG[:, 3]) * MARGIN
+            anybad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=1)
+            if anybad.any():
                 flag = int(np.argmax(anybad))
                 if flag == 0:
                     return 0, X[:1]
