@@ -46,20 +46,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
-import numpy as np
-
-from ..engine import periodmap
-from ..engine.screening import ChunkTraj, PeriodPlan
 from ..errors import ConfigError
 from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
+from .dcmotor_fast import CHUNK_MIN, PeriodicDrive
 from .presets import motor_preset
 
 INF = math.inf
-
-# fast engine: whole-period chunks are screened CHUNK_MIN periods ahead at first, doubling up to
-# CHUNK_MAX while nothing fires
-CHUNK_MIN, CHUNK_MAX = 16, 512
 
 # driver state when nothing drives the terminals: no current can flow in either direction
 OPEN_CIRCUIT = (-INF, INF, 0.0, True)
@@ -128,7 +121,7 @@ class MotorParams:
 DEFAULT_MOTOR_PARAMS = MotorParams()
 
 
-class DcMotor:
+class DcMotor(PeriodicDrive):
     """A brushed DC motor with gearbox and load.
 
     ``DcMotor(kernel, name="motor1", params=None, current=0.0, speed=0.0, angle=0.0,
@@ -481,154 +474,6 @@ class DcMotor:
         elif es != 0:
             guards.extend(self._stick_guards())
         return guards
-
-    # ---- the fast engine: a driver's steady periodic drive ------------------------------------------
-    def _piece_flow(self, drive, es, s, ticks):
-        """(flow, |A|, |u|, (a11, a12, u1)) of one piece of ``ticks`` in mode (es, s)."""
-        p = self.params
-        vp, vn, rbr, _ = drive
-        rt = p.R + rbr
-        v0 = vn if es == -1 else vp
-        tau = ticks * self._inv_hz
-        if s == 0:
-            lam = -rt / p.L
-            i_ss = v0 / rt
-            return (periodmap.stuck_flow(lam, i_ss, tau), np.array(((abs(lam), 0.0), (0.0, 0.0))),
-                    np.array((abs(lam * i_ss), 0.0)), (lam, 0.0, -lam * i_ss))
-        T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-        eig, A, u = self._full_system(rt, v0, T)
-        return (periodmap.full_flow(eig, A, u, tau), np.abs(np.array(((A[0], A[1]), (A[2], A[3])))),
-                np.abs(np.array(u)), (A[0], A[1], u[0]))
-
-    def _try_chunk(self, sched, j, x0) -> bool:
-        """From the start of piece ``j``: advance whole periods if no guard can fire in them."""
-        _, P, pieces = sched
-        npc = len(pieces)
-        plan_pieces, modes = [], []
-        x = x0
-        for q in range(npc):
-            idx = (j + q) % npc
-            off, drive, bguards = pieces[idx]
-            ticks = (pieces[idx + 1][0] if idx + 1 < npc else P) - off
-            es, s = self._select(x, drive)
-            if es == 0:
-                return False        # discontinuous conduction: a guard event every period
-            flow, absA, absu, lin = self._piece_flow(drive, es, s, ticks)
-            guards = tuple(self._mode_guards(es, s, drive)) + tuple(bguards)
-            plan_pieces.append((ticks, flow, absA, absu, guards, drive, (es, s), lin))
-            modes.append((es, s))
-            v = flow @ np.array((x[0], x[1], x[2], 1.0))
-            x = (float(v[0]), float(v[1]), float(v[2]))
-        key = (P, tuple((o, d, g) for o, d, g in pieces), j, tuple(modes), self._pkey, self.params.R)
-        plan = self._plans.get(key)
-        if plan is None:
-            if len(self._plans) > 64:
-                self._plans.clear()
-            plan = self._plans[key] = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
-        extra = []
-        for prov in self._providers:
-            if prov is not self._driver and not getattr(prov, "passive_guards", False):
-                extra.extend(prov.plant_guards())
-        n = self._chunk_n
-        k, X = plan.first_flag(x0, n, tuple(extra))
-        now = self.kernel.now
-        if k == 0:
-            self._chunk_n = CHUNK_MIN
-            self._chunk_retry = now + P
-            return False
-        self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
-        self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X)
-        self.segments += 1
-        self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
-        self._find_passive()
-        return True
-
-    def _find_passive(self):
-        """Schedule the next firing of a passive provider's guards (an encoder threshold: its
-        handler changes no input of the motor) inside the current chunk, which stays as it is."""
-        tr = self._traj
-        inv = self._inv_hz
-        after = self.kernel.now - self._t0
-        if tr.kind == "chunk":
-            end = tr.periods * tr.plan.P
-            search = lambda g: tr.first_fire(g, after, inv)
-        else:           # a closed-form segment, up to its own next event
-            end = self._seg_end
-            if end <= after:
-                return
-            xa, xe = self._at(tr, after), tr.eval(end * inv)
-            hval = pwl.hval
-            # θ is monotone up to the segment's own next event (a speed reversal is one of its
-            # guards): an encoder threshold fires once, found by a bracketing search
-            search = lambda g: pwl.first_fire_monotone(
-                lambda k: hval(g, tr.eval(k * inv)), after, end, hval(g, xa), hval(g, xe), g[4])
-        best, firing = None, []
-        s = self._s
-        for prov in self._providers:
-            if getattr(prov, "passive_guards", False):
-                for g in prov.plant_guards():
-                    if g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
-                        continue
-                    n = search(g)
-                    if n is None or (best is not None and n > best):
-                        continue
-                    if best is None or n < best:
-                        best, firing = n, [g]
-                    else:
-                        firing.append(g)
-        if best is None:
-            return
-        if best == end:      # at the segment's own event: that event runs it first
-            if self._pending is not None and self._pending_time == self._t0 + best:
-                self._pending = self._pending + firing
-            else:
-                self._pending, self._pending_time = firing, self._t0 + best
-        else:
-            self._passive = firing
-            self._ev_passive = self.kernel.at(self._t0 + best, self._on_passive, prio=PRIO_PLANT)
-
-    def _on_passive(self):
-        self._ev_passive = None
-        tr = self._traj
-        # the edge-by-edge engine starts a segment here, so its peak-current tracking samples this
-        # tick (with a complex eigenvalue pair it sees only segment ends): sample it too
-        self._peak = max(self._peak, abs(self._now_state()[0]))
-        for g in self._passive:
-            g[5].on_guard(g[6])
-        if self._traj is tr and self._ev_passive is None:
-            self._find_passive()
-
-    def _on_piece_end(self):
-        self._ev = None
-        self._grow = False
-        self._sync()
-
-    def _rebuild_periodic(self, sched, x0):
-        anchor, P, pieces = sched
-        now = self.kernel.now
-        ph = (now - anchor) % P
-        j = len(pieces) - 1
-        while pieces[j][0] > ph:
-            j -= 1
-        if ph == pieces[j][0] and now >= self._chunk_retry and self._try_chunk(sched, j, x0):
-            return
-        # one piece, edge by edge: the reference engine's segment, screened up to the piece end
-        n_end = (pieces[j + 1][0] if j + 1 < len(pieces) else P) - ph
-        drive = pieces[j][1]
-        es, s = self._select(x0, drive)
-        self._es, self._s = es, s
-        tr = self._traj = self._build(x0, drive, es, s)
-        self.segments += 1
-        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
-        self._grow = False
-        if tr.kind == "static":
-            self._ev = self.kernel.at(now + n_end, self._on_piece_end, prio=PRIO_HW)
-            return
-        guards = self._mode_guards(es, s, drive)
-        for prov in self._providers:
-            guards.extend(prov.plant_guards())
-        self._screen(tr, x0, guards, limit=n_end)
 
     def _rebuild(self):
         if self._ev is not None:
