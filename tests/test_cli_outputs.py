@@ -162,3 +162,18 @@ def test_avr_interrupt_lines_are_in_the_vcd_and_the_module_command_starts_after_
         assert f" {name} $end" in text
     (tr,) = master.transfers
     assert tr.t_start == sim.timebase.ticks("1ms") and tr.ok
+
+
+def test_bench_engine_both_reports_both_factors_and_their_ratio(tmp_path, capsys):
+    """Issue: `bench --engine both` runs the two engines in one process; --json has
+    realtime_factor (fast), reference_realtime_factor and speedup = their ratio."""
+    import json
+
+    from mcusim.cli import main
+    out = tmp_path / "b.json"
+    assert main(["bench", "nucleo-f746", "--engine", "both", "--repeat", "1", "--duration", "5ms",
+                 "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["engine"] == "both" and r["reference_realtime_factor"] > 0 and r["realtime_factor"] > 0
+    assert abs(r["speedup"] - r["realtime_factor"] / r["reference_realtime_factor"]) < 1e-12
+    assert "speedup" in capsys.readouterr().out
