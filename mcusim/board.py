@@ -62,12 +62,21 @@ def read_profile(board: str) -> tuple[dict, str]:
 
 
 def parse_value(text: str):
-    """A ``--set`` value: true/false, an int, a float, else the string itself."""
+    """A ``--set`` value: true/false, an int (also 0x.., 0b..), a float, a list (``8,9`` or ``[8,9]``),
+    else the string itself."""
     low = text.strip().lower()
     if low in ("true", "on", "yes"):
         return True
     if low in ("false", "off", "no"):
         return False
+    if "," in text or (low.startswith("[") and low.endswith("]")):   # a list: 8,9 or [8, 9]
+        items = [t for t in text.strip().strip("[]").split(",") if t.strip()]
+        return [parse_value(t) for t in items]
+    if low.startswith(("0x", "-0x", "0b", "0o")):
+        try:
+            return int(low, 0)
+        except ValueError:
+            pass
     for conv in (int, float):
         try:
             return conv(text)
@@ -136,7 +145,11 @@ def board_clocks(profile: dict) -> list:
     clocks = profile.get("clocks", {})
     if "sysclk" not in clocks:
         return []
-    return [parse_frequency(f) for f in clocks.get("base", [clocks["sysclk"]])]
+    freqs = clocks.get("base", [clocks["sysclk"]])
+    for f in [clocks["sysclk"], *(freqs if isinstance(freqs, list) else [freqs])]:
+        if not isinstance(f, str):      # frequencies take units, as everywhere (a bare number is refused)
+            raise ConfigError(f"[clocks] {f!r}: a frequency with a unit, such as \"216MHz\"")
+    return [parse_frequency(f) for f in freqs]
 
 
 def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
@@ -171,7 +184,7 @@ def _part_params(kind, spec: dict, overrides: dict, name: str, where: str) -> di
             raise ConfigError(f"--set {name}.{key}: names other parts; it is set in the profile only")
         if key not in kind.params and not kind.open_params:
             raise ConfigError(f"--set {name}.{key}: {name} ({kind.name}) has no parameter {key!r} "
-                              f"(known: {', '.join(sorted(kind.params))})")
+                              + (f"(known: {', '.join(sorted(kind.params))})" if kind.params else "(it takes none)"))
         params[key] = kind.params[key].check(value, f"{name}.{key}") if key in kind.params else value
     kind.check_rules(params, f"{where}: part {name}" if not overrides else f"part {name}")
     return params
@@ -252,6 +265,10 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         core = profile["core"]
     except KeyError as exc:
         raise ConfigError(f"{where}: missing table [{exc.args[0]}]") from None
+    for key in ("sysclk",):          # frequencies take units, as everywhere (a bare number is refused)
+        if not isinstance(clocks.get(key), str):
+            raise ConfigError(f"{where}: [clocks] {key} = {clocks.get(key)!r}: a frequency with a unit, "
+                              "such as \"216MHz\"")
     sysclk = parse_frequency(clocks["sysclk"])
     if kernel is None:
         kernel = Kernel(TimeBase(board_clocks(profile)), engine)
@@ -361,6 +378,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         except BaseException as exc:
             for task in mcu.rtos.tasks:        # tasks it created will never run: end them quietly
                 task.coro.close()
+            if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], str):
+                raise ConfigError(f"{where}: firmware {kind.name} needs {exc.args[0]!r}, which the profile "
+                                  f"does not declare (peripherals: {', '.join(mcu.periph)})") from None
             if isinstance(exc, BUILD_ERRORS):
                 raise ConfigError(f"{where}: firmware {kind.name}: {exc}") from None
             raise

@@ -11,6 +11,7 @@ import argparse
 import contextlib
 import json
 import os
+import signal
 import statistics
 import sys
 import time
@@ -268,9 +269,13 @@ def _outputs(args, scenario):
         inputs.append(args.board)
     outs = Outputs(inputs)
     files = {}
+    for opt, value in (("--vcd", args.vcd), ("--csv", args.csv), ("--plot", args.plot), ("--summary", args.summary)):
+        if value == "-":
+            raise ConfigError(f"{opt} -: standard output is for --register-log only; give a file name")
     if args.vcd:
         files["vcd"] = outs.add("--vcd", args.vcd, streamed=True)
-        files["gtkw"] = outs.add("--vcd (its GTKWave layout)", os.path.splitext(args.vcd)[0] + ".gtkw")
+        if not files["vcd"].special:    # /dev/null and the like: no layout file next to a device
+            files["gtkw"] = outs.add("--vcd (its GTKWave layout)", os.path.splitext(args.vcd)[0] + ".gtkw")
     if args.csv:
         files["csv"] = outs.add("--csv", args.csv, streamed=True)
     if args.plot:
@@ -318,12 +323,16 @@ def cmd_run(args) -> int:
         vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
         csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
                              keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)
-        run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
+        try:
+            run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
+        except McusimError as exc:      # a fault found during the run: say when
+            exc.sim_time = sim.time_s
+            raise
         sim.close()
         s = sim.summary()
         if scenario is not None:
             s.update(scenario.report_entries())
-        if vcd is not None:
+        if vcd is not None and "gtkw" in files:
             from .trace import write_gtkw
             write_gtkw(vcd, files["gtkw"].target, dumpfile=args.vcd, savefile=args.vcd and
                        os.path.splitext(args.vcd)[0] + ".gtkw")
@@ -348,7 +357,7 @@ def cmd_run(args) -> int:
             for line in scenario.format_results():
                 print(line)
         if vcd is not None:
-            print(f"VCD written to {args.vcd} (GTKWave layout: {files['gtkw'].path})")
+            print(f"VCD written to {args.vcd}" + (f" (GTKWave layout: {files['gtkw'].path})" if "gtkw" in files else ""))
         if args.csv:
             print(f"CSV written to {args.csv}")
         if args.plot:
@@ -480,6 +489,7 @@ def main(argv=None) -> int:
     import warnings
     old_showwarning = warnings.showwarning
     warnings.showwarning = _one_line_warning
+    old_term = _on_sigterm()
     try:
         if args.cmd == "boards":
             from .board import board_names, read_profile, shipped_text
@@ -514,8 +524,13 @@ def main(argv=None) -> int:
         print(f"mcusim: error: {_os_error(exc, args)}", file=sys.stderr)
         return 2
     except McusimError as exc:
-        print(f"mcusim: error: {_short(exc)}", file=sys.stderr)
+        when = getattr(exc, "sim_time", None)
+        print(f"mcusim: error: {_short(exc)}" + (f" (at simulated t = {when:.9f} s)" if when is not None else ""),
+              file=sys.stderr)
         return 1
+    except _Terminated:
+        print("mcusim: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("mcusim: interrupted", file=sys.stderr)
         return 130
@@ -527,7 +542,24 @@ def main(argv=None) -> int:
         return 1
     finally:
         warnings.showwarning = old_showwarning
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
     return 0
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that a run cleans up as after Ctrl-C."""
+
+
+def _on_sigterm():
+    """Install the SIGTERM handler (main thread only); returns the previous one, or None."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def handler(signum, frame):
+        raise _Terminated()
+    return signal.signal(signal.SIGTERM, handler)
 
 
 if __name__ == "__main__":

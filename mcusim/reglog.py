@@ -148,6 +148,13 @@ def _check_filter(sim, filter) -> None:
             raise ConfigError(f"register log filter {pat!r} matches no peripheral; peripherals: "
                               f"{', '.join(known)}" + (f"; boards: {', '.join(sim.members)}"
                                                        if len(sim.members) > 1 else ""))
+        parts = pat.split(".")
+        if len(parts) >= 2 and not any(c in parts[-1] for c in "*?["):   # PERIPH.REG: the register exists
+            regs = {r.name.upper() for member in sim.members.values() for p in _bus_peripherals(member["mcu"])
+                    if p.name.upper() == parts[-2].upper() for r in getattr(p, "REGISTERS", ())}
+            if regs and parts[-1].upper() not in regs:
+                raise ConfigError(f"register log filter {pat!r}: {parts[-2]} has no register {parts[-1]}; "
+                                  f"registers: {', '.join(sorted(regs))}")
 
 
 def _addresses(bus) -> tuple[dict, dict]:

@@ -58,6 +58,8 @@ def read_profile_text(data: bytes, where: str) -> Profile:
                           f"{exc.start}); a profile is TOML text") from None
     try:
         parsed = tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError(f"{where}: invalid TOML: nested too deeply") from None
     except tomllib.TOMLDecodeError as exc:
         msg = str(exc)
         m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)

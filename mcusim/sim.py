@@ -74,6 +74,8 @@ class Simulation:
         if sum(given) != 1:
             raise McusimError("run() takes exactly one of cycles=, seconds=, until=, until_tick=")
         if cycles is not None:
+            if int(cycles) != cycles or cycles < 0:
+                raise McusimError(f"run(cycles={cycles!r}): expected a whole number of cycles >= 0")
             end = self.kernel.now + self.mcu.core_clock.cycles(int(cycles))
         elif seconds is not None:
             end = self.kernel.now + self.timebase.ticks(seconds, rounding=True)

@@ -415,7 +415,8 @@ class RoverControl:
                               "; ".join(f"{k} ({v})" for k, v in HOST_INPUTS.items()))
         v = INPUTS[name].check(value, name)
         if name == "cmd_vel.lateral" and v and not self.layout.holonomic:
-            raise ConfigError(f"{name}: a {self.layout.kind} rover cannot move sideways")
+            art = "an" if self.layout.kind[:1] in "aeiou" else "a"
+            raise ConfigError(f"{name}: {art} {self.layout.kind} rover cannot move sideways")
         return v
 
     def publish(self, name: str, value) -> None:

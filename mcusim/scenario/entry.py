@@ -52,6 +52,8 @@ def load_scenario(path) -> Scenario:
                           + (f" (shipped scenarios: {known})" if known else "")) from None
     try:
         data = tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError(f"{p}: invalid TOML: nested too deeply") from None
     except tomllib.TOMLDecodeError as exc:
         msg = str(exc)
         m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)

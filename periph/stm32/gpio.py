@@ -19,7 +19,7 @@ MODER before AFR.
 
 from __future__ import annotations
 
-from mcusim.errors import UnsupportedConfiguration
+from mcusim.errors import ConfigError, UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 
 # (pin, AF number) -> (peripheral, channel). DS10916 Table 12 (AF1 TIM1/2, AF2 TIM3/4/5, AF3 TIM8).
@@ -66,6 +66,8 @@ class Gpio(Peripheral):
         super().__init__(name)
         self.mcu, self.port = mcu, port
         self.af_table = STM32F746_TIMER_AF if af_table is None else af_table
+        if f"P{port}0" in mcu.pins:
+            raise ConfigError(f"{name}: port {port} is declared twice (another GPIO peripheral has it)")
         self.pins = [mcu.add_pin(f"P{port}{n}") for n in range(16)]
         self._routes: dict[int, tuple] = {}  # pin -> (timer, channel) while in AF mode
         self._listeners_on: set = set()
