@@ -88,12 +88,15 @@ class Param:
     """A declared value: default, type, range or choices, unit and a line of documentation."""
 
     def __init__(self, default, *, min=None, max=None, above=None, below=None, choices=None,
-                 items: Param | None = None, length=None, unit: str = "", doc: str = "", kind=None):
+                 items: Param | None = None, length=None, unit: str = "", doc: str = "", kind=None,
+                 unique: str | None = None):
         self.default = default
         self.kind = kind or (float if isinstance(default, float) else type(default))
         self.min, self.max, self.above, self.below = min, max, above, below
         self.choices = tuple(choices) if choices is not None else None
         self.items, self.length, self.unit, self.doc = items, length, unit, doc
+        # ``unique="i2c"``: no two boards of a system may take the same value (a bus address)
+        self.unique = unique
 
     def range_text(self) -> str:
         """``from 1 to 1000 ms``, ``above 0 Ω``, ``one of correct, thesis`` (empty if unbounded)."""

@@ -152,7 +152,7 @@ def _check_filter(sim, filter) -> None:
         if len(parts) >= 2 and not any(c in parts[-1] for c in "*?["):   # PERIPH.REG: the register exists
             regs = {r.name.upper() for member in sim.members.values() for p in _bus_peripherals(member["mcu"])
                     if p.name.upper() == parts[-2].upper() for r in getattr(p, "REGISTERS", ())}
-            if regs and parts[-1].upper() not in regs:
+            if regs and not any(r.startswith(parts[-1].upper()) for r in regs):   # (a prefix is allowed)
                 raise ConfigError(f"register log filter {pat!r}: {parts[-2]} has no register {parts[-1]}; "
                                   f"registers: {', '.join(sorted(regs))}")
 

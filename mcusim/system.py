@@ -106,8 +106,26 @@ def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, k
             raise ConfigError(f"--set {', '.join(given)}: {name} {why}")
         p_fw, p_topics = {}, []
     ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external)
-    ns["present"], ns["topics"] = present, p_topics
+    ns["present"], ns["topics"], ns["fw_params"] = present, p_topics, p_fw
     return ns
+
+
+def _check_unique_params(members: dict, where: str) -> None:
+    """Firmware parameters declared ``unique`` (a bus address) must differ between the boards,
+    else two slaves answer one address: a configuration error, found before the run."""
+    seen: dict = {}
+    for name, ns in members.items():
+        fw = ns.get("firmware")
+        for key, decl in getattr(type(fw), "PARAMS", {}).items() if fw is not None else ():
+            tag = getattr(decl, "unique", None)
+            if tag is None:
+                continue
+            value = ns["fw_params"].get(key, decl.default)
+            other = seen.setdefault((tag, value), name)
+            if other != name:
+                shown = f"{value:#04x}" if isinstance(value, int) else repr(value)
+                raise ConfigError(f"{where}: {other} and {name} both have firmware.{key} = {shown}; "
+                                  f"each board needs its own")
 
 
 def _build_system_parts(profile, where, part_params, members, link_nets, kernel) -> dict:
@@ -193,6 +211,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
             members[name] = _build_member(
                 m, *member_profiles[name], member_sets[name], present[name],
                 main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
+        _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     except Exception:
         close_firmware_tasks(members)    # firmware that will never run: end its coroutines quietly

@@ -96,3 +96,10 @@ def test_sigterm_leaves_partial_outputs_marked_and_exits_143(tmp_path):
     _, err = p.communicate(timeout=60)
     assert p.returncode == 143 and "terminated" in err and "t.vcd.part" in err
     assert not [f for f in os.listdir(tmp_path) if f.endswith(".tmp.gtkw")]
+
+
+def test_two_modules_on_one_i2c_address_are_refused_before_the_run(capsys):
+    """A firmware parameter declared unique (a bus address) differs between a system's boards;
+    before, two slaves on 0x09 were found only mid-run (exit 1), or never in a short run."""
+    msg = _one_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "mcm1.firmware.i2c_address=9"])
+    assert "mcm1 and mcm2 both have firmware.i2c_address = 0x09" in msg

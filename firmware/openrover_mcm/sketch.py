@@ -34,7 +34,8 @@ from mcusim.params import Param, firmware_params
 
 DEFAULTS = {
     # 7-bit addresses 0x08..0x77: 0x00-0x07 and 0x78-0x7F are reserved by the I2C specification
-    "i2c_address": Param(P.DEFAULT_ADDRESS, min=0x08, max=0x77, doc="the module's 7-bit I2C slave address"),
+    "i2c_address": Param(P.DEFAULT_ADDRESS, min=0x08, max=0x77, unique="i2c",
+                         doc="the module's 7-bit I2C slave address"),
     "sample_ms": Param(10, min=1, max=10_000, unit="ms", doc="PID_v1 sample time and velocity window"),
     # PID_v1's SetTunings ignores negative gains; duty units (1/1024) per count/s
     "kp": Param(0.02, min=0, max=1e4, doc="PID_v1 Kp, duty (1/1024) per count/s"),
