@@ -29,6 +29,7 @@ bridge is in current limitation or thermal shutdown, or when the inputs' periods
 from __future__ import annotations
 
 from ..errors import McusimError
+from .hbridge import leg_pieces
 
 
 class SteadyDrive:
@@ -65,27 +66,12 @@ class SteadyDrive:
         halves = self._half.values()
         if not waves or any(h.fault or h.overtemp for h in halves):
             return self._not_periodic(waves)
-        P = waves[0].period
-        if any(w.period != P for w in waves):
-            return self._not_periodic(waves)
         vals = tuple(None if n is None else (n.wave if n.wave is not None else (1 if n.level else 0))
                      for n in self._nets())
-        anchor = waves[0].rise
-        offs = sorted({0} | {(w.rise - anchor) % P for w in waves} | {(w.rise + w.width - anchor) % P
-                                                                      for w in waves})
-        pieces = []
-        for o in offs:
-            legs = self._legs_from(vals, anchor + o)
-            if pieces and pieces[-1][1] == legs:
-                continue
-            pieces.append((o, legs))
-        if len(pieces) > 1 and pieces[0][1] == pieces[-1][1]:   # the first piece began in the last
-            shift = pieces[-1][0]
-            anchor += shift
-            pieces = [(0, pieces[-1][1])] + [(o - shift + P, lg) for o, lg in pieces[1:-1]]
-            pieces.sort()
-        if len(pieces) == 1:
+        found = leg_pieces(waves, lambda t: self._legs_from(vals, t))
+        if found is None:
             return self._not_periodic(waves)
+        anchor, P, pieces = found
         if self._edge_ev is not None:
             self._edge_ev.cancel()
             self._edge_ev = None

@@ -36,3 +36,27 @@ class MosfetBridge:
             cb_p, _ = self._leg(b, +1)
             d = self._drive_cache[legs] = (ca_p - cb_n, ca_n - cb_p, ra + rb, "Z" in legs)
         return d
+
+
+def leg_pieces(waves, legs_at):
+    """Fast engine: the leg states of one period of input waveforms that share a period.
+
+    ``legs_at(t)`` gives the legs at tick t. Returns ``(anchor, period, [(offset, legs), ...])``
+    with a new piece at each offset where the legs change (the first piece starts at ``anchor``),
+    or None when the waveforms do not share a period or the legs never change."""
+    P = waves[0].period
+    if any(w.period != P for w in waves):
+        return None
+    anchor = waves[0].rise
+    offs = sorted({0} | {(w.rise - anchor) % P for w in waves}
+                  | {(w.rise + w.width - anchor) % P for w in waves})
+    pieces = []
+    for o in offs:
+        legs = legs_at(anchor + o)
+        if not pieces or pieces[-1][1] != legs:
+            pieces.append((o, legs))
+    if len(pieces) > 1 and pieces[0][1] == pieces[-1][1]:   # the first piece began in the last
+        shift = pieces[-1][0]
+        anchor += shift
+        pieces = sorted([(0, pieces[-1][1])] + [(o - shift + P, lg) for o, lg in pieces[1:-1]])
+    return None if len(pieces) == 1 else (anchor, P, pieces)

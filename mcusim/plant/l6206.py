@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from mcusim.plant.hbridge import MosfetBridge
+from mcusim.plant.hbridge import MosfetBridge, leg_pieces
 
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
@@ -127,27 +127,11 @@ class L6206Bridge(MosfetBridge):
         if not waves or self.ocd_active:
             self._periodic = False
             return None
-        P = waves[0].period
-        if any(w.period != P for w in waves):
+        found = leg_pieces(waves, self._legs_at)
+        if found is None:
             self._periodic = False
             return None
-        anchor = waves[0].rise
-        offs = sorted({0} | {(w.rise - anchor) % P for w in waves} | {(w.rise + w.width - anchor) % P
-                                                                      for w in waves})
-        pieces = []
-        for o in offs:
-            legs = self._legs_at(anchor + o)
-            if pieces and pieces[-1][1] == legs:
-                continue
-            pieces.append((o, legs))
-        if len(pieces) > 1 and pieces[0][1] == pieces[-1][1]:   # the first piece began in the last
-            shift = pieces[-1][0]
-            anchor += shift
-            pieces = [(0, pieces[-1][1])] + [(o - shift + P, lg) for o, lg in pieces[1:-1]]
-            pieces.sort()
-        if len(pieces) == 1:
-            self._periodic = False
-            return None
+        anchor, P, pieces = found
         self._periodic = True
         I = self.params.I_ocd
         ocd = ((-1.0, 0.0, 0.0, I, True, self, "ocd"), (1.0, 0.0, 0.0, I, True, self, "ocd"))
