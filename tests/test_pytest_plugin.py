@@ -296,3 +296,15 @@ def test_the_example_of_the_docs_passes(pytester, run_inner):
     # straddle a CPython frame-stack chunk boundary and run at half speed (an mmap per call)
     run_inner(in_subprocess=True).assert_outcomes(passed=4)
 
+
+
+def test_mcusim_engine_option_sets_the_fixtures_engine(pytester, run_inner):
+    """Issue 9: the engine is selectable in the pytest fixture too (--mcusim-engine)."""
+    pytester.makepyfile(test_inner_engine='''
+        def test_engine(mcusim_sim, request):
+            sim = mcusim_sim("nucleo-f746", firmware=False)
+            assert sim.kernel.engine == (request.config.getoption("mcusim_engine") or "fast")
+            assert mcusim_sim("nucleo-f746", firmware=False, engine="fast").kernel.engine == "fast"
+    ''')
+    run_inner().assert_outcomes(passed=1)
+    run_inner("--mcusim-engine", "reference").assert_outcomes(passed=1)
