@@ -5,6 +5,17 @@ class McusimError(Exception):
     """Bad user input or an impossible request; the CLI prints it as one line and exits non-zero."""
 
 
+def with_member(exc, member: str, keys) -> Exception:
+    """``exc`` (a ConfigError about one of ``keys``, given for system member ``member``) with the key
+    named as the user wrote it: ``mcm2.motor.R`` rather than ``motor.R``."""
+    msg = str(exc)
+    for key in sorted(keys, key=len, reverse=True):
+        for head in (f"--set {key}", key):
+            if msg.startswith(head) and msg[len(head):len(head) + 1] in (" ", ":", "="):
+                return type(exc)(msg.replace(key, f"{member}.{key}", 1))
+    return exc
+
+
 class ConfigError(McusimError):
     """A board file, scenario, ``--set`` key or CLI argument is wrong."""
 

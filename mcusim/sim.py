@@ -7,7 +7,7 @@ import time as _wall
 
 from .board import build, parse_value, read_profile, split_overrides
 from .engine import DEFAULT_ENGINE, check_engine
-from .errors import ConfigError, McusimError
+from .errors import ConfigError, McusimError, with_member
 from .system import build_system, close_firmware_tasks, is_system
 
 
@@ -41,9 +41,14 @@ class Simulation:
             if topics and self.firmware is None:
                 raise ConfigError(f"--set {', '.join(k for k, _ in topics)}: a message or input for the firmware, "
                                   "but this simulation runs without firmware (--no-firmware)")
-            for member in self.members.values():   # a system's per-board inputs (mcm1.velocity=10)
+            for mname, member in self.members.items():   # a system's per-board inputs (mcm1.velocity=10)
                 for name, value in member["topics"]:
-                    member["firmware"].publish(name, value)
+                    try:
+                        member["firmware"].publish(name, value)
+                    except ConfigError as exc:
+                        if len(self.members) > 1:
+                            raise with_member(exc, mname, [name]) from None
+                        raise
             for name, value in topics:
                 self.publish(name, value)
         except BaseException:

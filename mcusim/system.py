@@ -39,7 +39,7 @@ parameter of the main board's firmware; any other key is an input of the main fi
 from __future__ import annotations
 
 from .board import _firmware_inputs, board_clocks, build, build_parts, read_profile, split_overrides
-from .errors import ConfigError
+from .errors import ConfigError, with_member
 from .kernel import Kernel
 from .signals import Net
 from .time import TimeBase
@@ -105,7 +105,10 @@ def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, k
             why = "is not present" if not present else "runs without firmware (--no-firmware)"
             raise ConfigError(f"--set {', '.join(given)}: {name} {why}")
         p_fw, p_topics = {}, []
-    ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external)
+    try:
+        ns = build(prof, pwhere, p_parts, fw_on, p_fw, buses=buses, kernel=kernel, external=external)
+    except ConfigError as exc:
+        raise with_member(exc, name, user_sets) from None
     ns["present"], ns["topics"], ns["fw_params"] = present, p_topics, p_fw
     return ns
 

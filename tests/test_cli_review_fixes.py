@@ -103,3 +103,9 @@ def test_two_modules_on_one_i2c_address_are_refused_before_the_run(capsys):
     before, two slaves on 0x09 were found only mid-run (exit 1), or never in a short run."""
     msg = _one_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "mcm1.firmware.i2c_address=9"])
     assert "mcm1 and mcm2 both have firmware.i2c_address = 0x09" in msg
+
+
+@pytest.mark.parametrize("key,value", [("mcm2.motor.R", "0"), ("mcm1.firmware.kp", "-1"), ("mcm1.velocity", "nan")])
+def test_a_system_members_key_is_named_as_the_user_wrote_it(capsys, key, value):
+    msg = _one_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", f"{key}={value}"])
+    assert msg.startswith(f"mcusim: error: {key} = {value}")
