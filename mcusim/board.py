@@ -196,6 +196,11 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
     digital terminal; parameters in the kind's ``refs`` name other parts, resolved among the parts
     built so far or by ``lookup(name)`` (a system's parts of its boards: ``"mcm1.motor"``)."""
     parts: dict = {}
+    declared = {s.get("name") for s in specs}
+    for part in wiring:            # a misspelt part in [pins] first: else it shows as an unwired terminal
+        if part not in declared:
+            raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared "
+                              f"(parts: {', '.join(sorted(str(d) for d in declared if d))})")
 
     def ref(name, who):
         if name in parts:

@@ -109,3 +109,8 @@ def test_two_modules_on_one_i2c_address_are_refused_before_the_run(capsys):
 def test_a_system_members_key_is_named_as_the_user_wrote_it(capsys, key, value):
     msg = _one_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", f"{key}={value}"])
     assert msg.startswith(f"mcusim: error: {key} = {value}")
+
+
+def test_a_misspelt_part_in_pins_is_named(tmp_path, capsys):
+    path = _profile(tmp_path, lambda s: s.replace('PE9 = "bridgeA.IN1"', 'PE9 = "bridgeZ.IN1"'))
+    assert "names part 'bridgeZ', which is not declared" in _one_error(capsys, ["run", path, "--duration", "1ms"])
