@@ -137,10 +137,10 @@ def _parser() -> argparse.ArgumentParser:
                    "faults, expectations (a .toml path or the name of a shipped scenario: step_response)")
     r.add_argument("--vcd", metavar="FILE", help="write pins, IRQ lines and plant variables as VCD "
                    "(and a GTKWave layout FILE.gtkw)")
-    r.add_argument("--vcd-sample", type=_sample, default=Fraction(50, 10**6), metavar="TIME",
+    r.add_argument("--vcd-sample", type=_sample, default=None, metavar="TIME",
                    help="sampling period of the real-valued plant variables in the VCD (default 50us, at least 1us)")
     r.add_argument("--csv", metavar="FILE", help="write plant and firmware variables on a uniform grid")
-    r.add_argument("--sample", type=_sample, default=Fraction(1, 1000), metavar="TIME",
+    r.add_argument("--sample", type=_sample, default=None, metavar="TIME",
                    help="grid of --csv and --plot (default 1ms, at least 1us)")
     r.add_argument("--plot", metavar="FILE.png", help="draw set point and position or velocity, duty and "
                    "current (and the rover's path); needs matplotlib: pip install 'mcusim[plot]'")
@@ -256,6 +256,14 @@ def _check_run_args(args) -> None:
         if not args.register_log_filter.replace(",", "").replace(";", "").strip():
             raise ConfigError("--register-log-filter is empty: name peripherals or registers (TIM3, "
                               "TIM3.CCR1, GPIO*), or leave it out to log every access")
+    # a sampling grid without the output it is for would be ignored: say so instead
+    if getattr(args, "sample", None) is not None and not (args.csv or args.plot):
+        raise ConfigError("--sample is the grid of --csv and --plot; give one of them")
+    if getattr(args, "vcd_sample", None) is not None and not args.vcd:
+        raise ConfigError("--vcd-sample is the sampling period of --vcd; give --vcd FILE")
+    if hasattr(args, "sample"):
+        args.sample = Fraction(1, 1000) if args.sample is None else args.sample
+        args.vcd_sample = Fraction(50, 10**6) if args.vcd_sample is None else args.vcd_sample
     if args.duration is not None and args.duration > args.max_duration:
         raise ConfigError(f"--duration {fmt_duration(args.duration)}: longer than the limit of "
                           f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")

@@ -114,3 +114,8 @@ def test_a_system_members_key_is_named_as_the_user_wrote_it(capsys, key, value):
 def test_a_misspelt_part_in_pins_is_named(tmp_path, capsys):
     path = _profile(tmp_path, lambda s: s.replace('PE9 = "bridgeA.IN1"', 'PE9 = "bridgeZ.IN1"'))
     assert "names part 'bridgeZ', which is not declared" in _one_error(capsys, ["run", path, "--duration", "1ms"])
+
+
+@pytest.mark.parametrize("opt", ["--sample", "--vcd-sample"])
+def test_a_sampling_grid_without_its_output_is_refused(capsys, opt):
+    assert opt in _one_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", opt, "1ms"])
