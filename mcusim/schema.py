@@ -48,6 +48,21 @@ class Profile(dict):
         return ConfigError(f"{self.where}:{line}: {msg}" if line else f"{self.where}: {msg}")
 
 
+def parse_toml(text: str, where: str) -> dict:
+    """TOML text (a profile or a scenario), else one ConfigError naming the file and line."""
+    try:
+        return tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError(f"{where}: invalid TOML: nested too deeply") from None
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)
+        if m:
+            raise ConfigError(f"{where}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
+        line = text.count("\n") + 1 if "end of document" in msg else 1
+        raise ConfigError(f"{where}:{line}: invalid TOML: {msg}") from None
+
+
 def read_profile_text(data: bytes, where: str) -> Profile:
     """Parse a profile's bytes: UTF-8 TOML, else ConfigError naming the file (and line)."""
     try:
@@ -56,17 +71,7 @@ def read_profile_text(data: bytes, where: str) -> Profile:
         line = data[:exc.start].count(b"\n") + 1
         raise ConfigError(f"{where}:{line}: not a UTF-8 text file (byte {data[exc.start]:#04x} at offset "
                           f"{exc.start}); a profile is TOML text") from None
-    try:
-        parsed = tomllib.loads(text)
-    except RecursionError:
-        raise ConfigError(f"{where}: invalid TOML: nested too deeply") from None
-    except tomllib.TOMLDecodeError as exc:
-        msg = str(exc)
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)
-        if m:
-            raise ConfigError(f"{where}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
-        raise ConfigError(f"{where}: invalid TOML: {msg}") from None
-    prof = Profile(parsed)
+    prof = Profile(parse_toml(text, where))
     prof.where, prof.lines = where, _Lines(text)
     return prof
 

@@ -587,23 +587,8 @@ def test_dual_slope_tcnt_and_top_writes_anywhere_match_oracle_with_interrupt_lin
             v = data.draw(st.one_of(st.sampled_from(edges), st.integers(0, top)))
             rig.w16(TCNT1, v)
             orc.write_tcnt(v)
-        elif op == "ocr":
-            ch = "B" if tsrc == "A" else data.draw(st.sampled_from("AB"))
-            v = data.draw(ocr)
-            rig.w16(OCR1A if ch == "A" else OCR1B, v)
-            orc.write_ocr(ch, v)
-        elif op == "top" and tsrc is not None:
-            v = data.draw(st.integers(3, top + 5))
-            if tsrc == "A":
-                rig.w16(OCR1A, v)
-                orc.write_ocr("A", v)
-            else:
-                rig.w16(ICR1, v)
-                orc.icr = v
-        elif op == "clear":
-            b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
-            rig.w(TIFR1, b)
-            orc.flags &= ~b
+        else:
+            _write_both(rig, orc, op, data, tsrc, top, ocr)
         run(data.draw(st.integers(0, 2 * top + 3)))
     run(4 * (top + 5))
     for ch in "AB":
@@ -668,23 +653,8 @@ def test_steady_waveforms_match_per_clock_oracle_in_fast_engine(mode, top, n, da
             v = data.draw(st.integers(0, top))
             rig.w16(TCNT1, v)
             orc.write_tcnt(v)
-        elif op == "ocr":
-            ch = "B" if tsrc == "A" else data.draw(st.sampled_from("AB"))
-            v = data.draw(ocr)
-            rig.w16(OCR1A if ch == "A" else OCR1B, v)
-            orc.write_ocr(ch, v)
-        elif op == "top" and tsrc is not None:
-            v = data.draw(st.integers(3, top + 5))
-            if tsrc == "A":
-                rig.w16(OCR1A, v)
-                orc.write_ocr("A", v)
-            else:
-                rig.w16(ICR1, v)
-                orc.icr = v
-        elif op == "clear":
-            b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
-            rig.w(TIFR1, b)
-            orc.flags &= ~b
+        elif op in ("ocr", "top", "clear"):
+            _write_both(rig, orc, op, data, tsrc, top, ocr)
         elif op == "read":
             assert rig.r(TIFR1) == orc.flags
         elif op == "timsk":      # flags cleared first: a line then rises only with a new flag
@@ -722,3 +692,24 @@ def test_timerone_pwm_is_a_steady_waveform_without_timer_events_in_fast_engine()
     assert [w.level_at(k * rig.P) for k in (700, 701, 900, 901, 1500, 1501)] == [0, 1, 1, 0, 0, 1]
     rig.run_clocks(1)
     assert rig.r(TIFR1) == TOV | OCFA | OCFB | ICF     # OCR1B = 0 matches at BOTTOM
+
+
+def _write_both(rig, orc, op, data, tsrc, top, ocr):
+    """One generated write, to the model and to the oracle: a compare value, TOP, or a flag clear."""
+    if op == "ocr":
+        ch = "B" if tsrc == "A" else data.draw(st.sampled_from("AB"))
+        v = data.draw(ocr)
+        rig.w16(OCR1A if ch == "A" else OCR1B, v)
+        orc.write_ocr(ch, v)
+    elif op == "top" and tsrc is not None:
+        v = data.draw(st.integers(3, top + 5))
+        if tsrc == "A":
+            rig.w16(OCR1A, v)
+            orc.write_ocr("A", v)
+        else:
+            rig.w16(ICR1, v)
+            orc.icr = v
+    elif op == "clear":
+        b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
+        rig.w(TIFR1, b)
+        orc.flags &= ~b

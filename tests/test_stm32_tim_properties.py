@@ -69,15 +69,8 @@ def oracle_of(cfg):
                      cms=cfg["cms"], down=cfg["down"], rcr=cfg["rcr"], arpe=cfg["arpe"], ocpe=cfg["ocpe"])
 
 
-@SETTINGS
-@given(pwm_configs())
-def test_pwm_matches_per_tick_oracle_edge_for_edge(cfg):
-    rig, edges, t0 = start_model(cfg)
-    P = rig.P
-    uif = uif_times(rig, 1)
-    ccif = uif_times(rig, 1 << 1)
-    for cyc, reg, v in cfg["writes"]:
-        rig.kernel.at(t0 + cyc * P, rig.w, reg, v, prio=PRIO_CPU)
+def oracle_pins(cfg):
+    """(oracle, cycles, pin level at every cycle) of the per-tick oracle running cfg's writes."""
     orc = oracle_of(cfg)
     n = 4 * (cfg["psc"] + 1) * 2 * 31
     writes = {}
@@ -89,6 +82,19 @@ def test_pwm_matches_per_tick_oracle_edge_for_edge(cfg):
         for reg, v in writes.get(orc.cycle, ()):
             {"CCR1": orc.write_ccr, "ARR": orc.write_arr, "PSC": orc.write_psc}[reg](v)
         want.append(orc.pin())
+    return orc, n, want
+
+
+@SETTINGS
+@given(pwm_configs())
+def test_pwm_matches_per_tick_oracle_edge_for_edge(cfg):
+    rig, edges, t0 = start_model(cfg)
+    P = rig.P
+    uif = uif_times(rig, 1)
+    ccif = uif_times(rig, 1 << 1)
+    for cyc, reg, v in cfg["writes"]:
+        rig.kernel.at(t0 + cyc * P, rig.w, reg, v, prio=PRIO_CPU)
+    orc, n, want = oracle_pins(cfg)
     rig.kernel.run_until(t0 + n * P)
     init = level_at(edges, t0)
     got = [level_at(edges, t0 + c * P, init) for c in range(n + 1)]
@@ -116,14 +122,7 @@ def test_steady_waveform_matches_per_tick_oracle_in_fast_engine(cfg, reads):
             seen.append((cyc, sr))
             rig.w("SR", ~sr & 0xFFFF_FFFF)
         rig.kernel.at(t0 + cyc * P, read, prio=PRIO_CPU + 1)
-    orc = oracle_of(cfg)
-    n = 4 * (cfg["psc"] + 1) * 2 * 31
-    want = [orc.pin()]
-    for _ in range(n):
-        orc.step()
-        for reg, v in writes.get(orc.cycle, ()):
-            {"CCR1": orc.write_ccr, "ARR": orc.write_arr, "PSC": orc.write_psc}[reg](v)
-        want.append(orc.pin())
+    orc, n, want = oracle_pins(cfg)
     rig.kernel.run_until(t0 + n * P)
     init = level_at(edges, t0)
     got = [level_at(edges, t0 + c * P, init) for c in range(n + 1)]

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import re
-import tomllib
 from pathlib import Path
 
 from ..errors import ConfigError, McusimError
@@ -50,18 +48,8 @@ def load_scenario(path) -> Scenario:
         known = ", ".join(scenario_names())
         raise ConfigError(f"cannot read scenario {str(path)!r}: {exc.strerror}"
                           + (f" (shipped scenarios: {known})" if known else "")) from None
-    try:
-        data = tomllib.loads(text)
-    except RecursionError:
-        raise ConfigError(f"{p}: invalid TOML: nested too deeply") from None
-    except tomllib.TOMLDecodeError as exc:
-        msg = str(exc)
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)", msg)
-        if m:
-            raise ConfigError(f"{p}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
-        line = text.count("\n") + 1 if "end of document" in msg else 1
-        raise ConfigError(f"{p}:{line}: invalid TOML: {msg}") from None
-    return Scenario(p, data, _Lines(text))
+    from ..schema import parse_toml
+    return Scenario(p, parse_toml(text, p), _Lines(text))
 
 
 def run_scenario(path, board: str | None = None, *, duration=None, overrides: dict | None = None,
