@@ -284,12 +284,18 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     mcu.clocks["SYSCLK"] = mcu.core_clock
 
     avr = core.get("kind", "").startswith("avr")
+    elf = with_firmware if isinstance(with_firmware, (str, Path)) else None
+    if elf is not None:
+        from .elf.setup import attach_memories, check_elf_board
+        image, memories = check_elf_board(profile, where, elf)
+        attach_memories(bus, memories)
     if avr:
         irq = AvrInterrupts(num_vectors=core.get("vectors", 26))
     else:
         irq = Nvic(num_irqs=core.get("nvic_irqs", 98), prio_bits=core.get("nvic_prio_bits", 4))
         bus.attach(0xE000E100, irq)
-        bus.attach(0xE000ED00, Scb(irq))
+        if elf is None:
+            bus.attach(0xE000ED00, Scb(irq))
     mcu.nvic = mcu.irq = irq
     limit, what = (core.get("vectors", 26), "vectors") if avr else (core.get("nvic_irqs", 98), "NVIC lines")
     for spec in profile.get("peripheral", []):
@@ -346,8 +352,12 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         systick = SysTick("SysTick", mcu, mcu.core_clock, ref)
         mcu.periph["SysTick"] = systick
         bus.attach(0xE000E010, systick)
-    mcu.cpu = Cpu(kernel, mcu.core_clock, irq, entry_latency=core.get("entry_latency", 12))
-    mcu.rtos = Rtos(mcu.cpu)
+    if elf is not None:
+        from .elf.setup import build_core
+        mcu.cpu = build_core(profile, mcu, image, memories)
+    else:
+        mcu.cpu = Cpu(kernel, mcu.core_clock, irq, entry_latency=core.get("entry_latency", 12))
+        mcu.rtos = Rtos(mcu.cpu)
 
     # plant parts and wiring
     wiring: dict[str, dict[str, object]] = {}
@@ -370,7 +380,13 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         mcu.analog[net_name].source = src.voltage
 
     firmware = None
-    if with_firmware:
+    if elf is not None:
+        from .elf.firmware import ElfFirmware
+        if firmware_params:
+            raise ConfigError(f"firmware parameters {', '.join(firmware_params)} given, but the firmware is "
+                              f"the ELF {elf}: its parameters are compiled in")
+        firmware = ElfFirmware(mcu.cpu, elf)
+    elif with_firmware:
         fw = profile.get("firmware")
         if fw is None:
             raise ConfigError(f"{where}: the board has no [firmware]")

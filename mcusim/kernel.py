@@ -48,6 +48,7 @@ class Kernel:
         self._queue = []
         self._seq = 0
         self.events = 0  # events processed
+        self.end = None    # while running: run_until's t_end (a CPU core runs no instruction past it)
         self.horizon = -1  # while running: the last tick an event may run at (-1: none, see would_be_next)
 
     def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
@@ -90,8 +91,9 @@ class Kernel:
         q = self._queue
         pop = heapq.heappop
         n = 0
-        outer = self.horizon
+        outer, outer_end = self.horizon, self.end
         self.horizon = t_end if stop is None else -1
+        self.end = t_end
         try:
             while q and q[0][0] <= t_end:
                 time, _, _, ev = pop(q)
@@ -106,4 +108,4 @@ class Kernel:
             self.now = max(self.now, t_end)
         finally:
             self.events += n
-            self.horizon = outer
+            self.horizon, self.end = outer, outer_end

@@ -18,7 +18,7 @@ from .params import Param, _show
 from .scenario.source import _Lines
 from .time import parse_frequency
 
-BOARD_TABLES = ("board", "clocks", "core", "peripheral", "pull", "pins", "analog", "part", "firmware",
+BOARD_TABLES = ("board", "clocks", "core", "memory", "peripheral", "pull", "pins", "analog", "part", "firmware",
                 "run", "bench")
 SYSTEM_TABLES = ("system", "member", "links", "pins", "analog", "part", "run", "bench")
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*\Z")
@@ -30,7 +30,12 @@ _CORE = {
     "nvic_prio_bits": Param(4, min=2, max=8, doc="Cortex-M: implemented priority bits"),
     "systick_ref": Param("HCLK", choices=("HCLK", "HCLK/8"), doc="Cortex-M: SysTick reference clock"),
     "vectors": Param(26, min=2, max=64, doc="AVR: interrupt vectors"),
+    "cycles_per_instruction": Param(1, min=1, max=100, unit="cycles",
+                                    doc="Cortex-M running an ELF: core cycles each instruction takes"),
+    "boot_address": Param(0, min=0, max=0xFFFFFF80, doc="Cortex-M running an ELF: the vector table at reset "
+                                                        "(initial SP, reset vector; VTOR's reset value)"),
 }
+MEMORY_KINDS = ("flash", "ram")
 MAX_CLOCK_HZ = 10**10
 
 
@@ -198,6 +203,37 @@ def _check_board_tables(prof: Profile) -> None:
             _CORE[k].check(v, f"[core] {k}")
         except ConfigError as exc:
             raise prof.err(str(exc), "core", None, k) from None
+
+
+def _check_memory(prof: Profile) -> None:
+    """[[memory]]: name, base, size (4 KiB multiples: the core maps pages), kind, aliases."""
+    spans = []
+    for i, spec in enumerate(_array(prof, "memory")):
+        where = f"[[memory]] #{i + 1}"
+        _known(prof, spec, ("name", "base", "size", "kind", "aliases"), where, "memory", i)
+        for key in ("name", "base", "size", "kind"):
+            if key not in spec:
+                raise prof.err(f"{where}: missing {key} = ...", "memory", i)
+        name = _name(prof, spec["name"], f"{where} name", "memory", i, "name")
+        where = f"[[memory]] {name}"
+        if spec["kind"] not in MEMORY_KINDS:
+            raise prof.err(f"{where}: kind = {_show(spec['kind'])}: expected one of {', '.join(MEMORY_KINDS)}",
+                           "memory", i, "kind")
+        size = spec["size"]
+        if isinstance(size, bool) or not isinstance(size, int) or size <= 0 or size % 0x1000:
+            raise prof.err(f"{where}: size = {_show(size)}: expected a positive multiple of 0x1000 bytes",
+                           "memory", i, "size")
+        aliases = spec.get("aliases", [])
+        if not isinstance(aliases, list):
+            raise prof.err(f"{where}: aliases must be a list of addresses", "memory", i, "aliases")
+        for key, b in [("base", spec["base"])] + [("aliases", a) for a in aliases]:
+            if isinstance(b, bool) or not isinstance(b, int) or b % 0x1000 or not 0 <= b <= 0x100000000 - size:
+                raise prof.err(f"{where}: {key} {_show(b)}: expected a 0x1000-aligned address with the region "
+                               "below 4 GiB", "memory", i, key)
+            for other, lo, hi in spans:
+                if b < hi and lo < b + size:
+                    raise prof.err(f"{where}: {b:#010x}-{b + size - 1:#010x} overlaps {other}", "memory", i, key)
+            spans.append((name, b, b + size))
 
 
 def _check_peripherals(prof: Profile) -> None:
@@ -386,6 +422,7 @@ def check_profile(prof: Profile) -> None:
         _check_system(prof)
     else:
         _check_board_tables(prof)
+        _check_memory(prof)
         _check_peripherals(prof)
         _check_firmware(prof)
     _check_wiring(prof, system)

@@ -17,6 +17,9 @@ class Simulation:
         check_engine(engine)
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
+        if is_system(profile) and not isinstance(firmware, bool):
+            raise ConfigError(f"{where}: a system runs its boards' own firmware; give an ELF to one board "
+                              "profile (mcusim run nucleo-f746 --firmware app.elf)")
         if is_system(profile):
             ns = build_system(profile, where, overrides, firmware, engine)
             topics = ns["topics"]
@@ -217,9 +220,11 @@ class Simulation:
         return out
 
 
-def load(board: str, firmware: bool = True, overrides: dict | None = None, **kw) -> Simulation:
+def load(board: str, firmware=True, overrides: dict | None = None, **kw) -> Simulation:
     """Build a simulation of a board profile (a name from ``mcusim boards`` or a .toml path).
 
     ``overrides`` are ``--set`` pairs: ``{"motor1.load_inertia": 2e-5, "/motor1/set_pos": 1.57}``.
+    ``firmware``: True (the profile's firmware), False (none) or the path of an ELF image to run
+    on the board's Cortex-M core (``docs/firmware.md``).
     """
     return Simulation(board, firmware=firmware, overrides=overrides, **kw)

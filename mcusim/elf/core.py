@@ -1,0 +1,397 @@
+"""A Cortex-M core running a compiled image (unicorn) on the simulation's kernel and bus.
+
+It implements the CPU interface of :class:`mcusim.firmware.Cpu` that the NVIC drives
+(``request_dispatch``, ``dispatch_last``): the NVIC says an interrupt may need taking, the core
+takes it when the architecture says so. How it runs:
+
+* **Quanta.** The core executes ``emu_start(count=n)`` where n instructions reach up to the next
+  scheduled kernel event (or the end of the run). Instruction i of a quantum that starts at tick
+  T executes at ``T + i * cpi * period`` (the cycle model: ``cpi`` core cycles per instruction,
+  ``[core] cycles_per_instruction``, default 1).
+* **MMIO at its instant.** Peripheral pages are mapped with ``mmio_map``; each access goes
+  through the bus (the register models) with ``kernel.now`` set to the instant of its
+  instruction, counted with a block hook and the exact PC (``count=`` makes the PC exact).
+* **Ending a quantum early.** An access that schedules an event before the quantum's end or
+  pends an interrupt that can preempt stops the emulation inside the callback. unicorn then
+  abandons the instruction and runs it again on resume, so the core *replays* it at once, alone
+  (``count=1``), answering its accesses from the record (no second side effect): the quantum
+  ends exactly after that instruction.
+* **WFI** ends ``emu_start``; the core sleeps (no kernel event at all) until the NVIC reports an
+  interrupt that can wake it.
+* **Exceptions** are the simulator's (unicorn has none): see :mod:`mcusim.elf.exceptions`.
+* **Faults** (unmapped or protected access, undefined instruction, a bus fault in a register
+  model, an escalated SVC) stop the run with :class:`CoreFault` naming the PC, the function and
+  the simulated time.
+"""
+
+from __future__ import annotations
+
+from unicorn import (
+    UC_ARCH_ARM,
+    UC_HOOK_BLOCK,
+    UC_HOOK_INTR,
+    UC_MODE_THUMB,
+    UC_PROT_ALL,
+    UC_PROT_EXEC,
+    UC_PROT_READ,
+    Uc,
+    UcError,
+)
+from unicorn import arm_const as A
+
+from ..errors import ConfigError, McusimError
+from ..kernel import PRIO_CPU
+from .exceptions import ExceptionModel
+from .memory import PAGE
+
+MAX_QUANTUM = 1 << 20          # instructions per emu_start at most (the kernel regains control)
+INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
+
+
+class CoreFault(McusimError):
+    """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ..."""
+
+
+def _thumb_len(halfword: int) -> int:
+    return 4 if (halfword >> 11) in (0b11101, 0b11110, 0b11111) else 2
+
+
+class CortexMCore:
+    """The CPU of an MCU running ``image`` (an :class:`~mcusim.elf.image.ElfImage`)."""
+
+    def __init__(self, mcu, image, memories, kind="cortex-m7", cpi=1, entry_latency=12, boot_address=None):
+        self.mcu, self.kernel, self.bus, self.nvic = mcu, mcu.kernel, mcu.bus, mcu.nvic
+        self.image, self.memories = image, memories
+        self.clock = mcu.core_clock
+        self.period = mcu.core_clock.period
+        self.cpi, self.entry_latency = int(cpi), int(entry_latency)
+        self.step_ticks = self.cpi * self.period
+        self.stack = []            # Cpu interface (traces look at it); exception numbers are in exc.active
+        self.rtos = None
+        self.isr_count: dict[int, int] = {}
+        self.busy_ticks = 0
+        self.instructions = 0      # retired since reset
+        self.nvic.cpu = self
+        self.uc = uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB)
+        uc.ctl_set_cpu_model(A.UC_CPU_ARM_CORTEX_M7 if kind == "cortex-m7" else A.UC_CPU_ARM_CORTEX_M4)
+        self._map_memories()
+        self._load(image)
+        self._map_peripherals()
+        uc.hook_add(UC_HOOK_BLOCK, self._on_block)
+        uc.hook_add(UC_HOOK_INTR, self._on_intr)
+        self.exc = ExceptionModel(self)
+        self._blocks: dict[int, tuple] = {}
+        self._blk_n_cache: dict[tuple, int] = {}
+        # run state
+        self.state = "run"          # run | sleep | halt (a debugger holds it)
+        self.cpu_time = 0           # tick of the next instruction
+        self._ev = None
+        self._in_emu = False
+        self._check = False         # an interrupt was pended during an access
+        self._stop = None           # why the emulation stopped early
+        self._replay = []
+        self._acc_pc, self._acc = None, []
+        self.debug = None           # a gdb server: breakpoints, watchpoints, halts
+        self.fault = None
+        boot = boot_address if boot_address is not None else 0
+        self.exc.reset(boot)
+        self._schedule(0)
+
+    # --- loading ---------------------------------------------------------------------------
+    def _map_memories(self):
+        uc = self.uc
+        for m in self.memories:
+            perms = (UC_PROT_READ | UC_PROT_EXEC) if m.kind == "flash" else UC_PROT_ALL
+            import ctypes
+            for base in (m.base, *m.aliases):
+                uc.mem_map_ptr(base, m.size, perms, ctypes.addressof(m.buffer))
+
+    def _region(self, address, length):
+        for m in self.memories:
+            off = m.contains(address, length)
+            if off is not None:
+                return m, off
+        return None, None
+
+    def _load(self, image):
+        for seg in image.segments:
+            m, off = self._region(seg.address, len(seg.data))
+            if m is None:
+                names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
+                raise ConfigError(f"{image.path}: a loadable segment at {seg.address:#010x} "
+                                  f"({len(seg.data)} bytes) lies outside the board's memory ({names})")
+            m.view[off:off + len(seg.data)] = seg.data
+        self._wfi = set()
+        for seg in image.segments:          # WFI instructions: where the core goes to sleep
+            if seg.executable:
+                d = seg.data
+                for i in range(0, len(d) - 1, 2):
+                    if d[i] == 0x30 and d[i + 1] == 0xBF:
+                        self._wfi.add(seg.address + i)
+
+    def _map_peripherals(self):
+        pages = set()
+        for base, size, _p in self.bus._entries:
+            if any(m.contains(base) is not None for m in self.memories):
+                continue
+            pages.update(range(base // PAGE, (base + size - 1) // PAGE + 1))
+        runs = []
+        for page in sorted(pages):
+            if runs and runs[-1][1] == page:
+                runs[-1][1] = page + 1
+            else:
+                runs.append([page, page + 1])
+        for first, end in runs:
+            base = first * PAGE
+            self.uc.mmio_map(base, (end - first) * PAGE, self._mmio_read, base, self._mmio_write, base)
+
+    # --- symbols -----------------------------------------------------------------------------
+    def where(self, pc=None) -> str:
+        return self.image.where(self.pc if pc is None else pc)
+
+    def caller(self) -> str | None:
+        """The function whose instruction makes the current bus access (the register log)."""
+        return self.image.function(self._acc_pc) if self._in_emu and self._acc_pc is not None else None
+
+    @property
+    def pc(self) -> int:
+        return self.uc.reg_read(A.UC_ARM_REG_PC)
+
+    # --- the CPU interface the NVIC drives -------------------------------------------------
+    def request_dispatch(self) -> None:
+        if self._in_emu:
+            self._check = True
+        elif self.state == "sleep" and self.exc.wakes():
+            self.state = "run"
+            self._schedule(max(self.cpu_time, self._aligned(self.kernel.now)))
+
+    dispatch_last = request_dispatch
+
+    def current_priority(self) -> int:
+        return self.exc.execution_priority()
+
+    def _aligned(self, t):
+        p = self.period
+        return -(-t // p) * p
+
+    def _schedule(self, t):
+        if self._ev is not None:
+            self._ev.cancel()
+        self.cpu_time = t
+        self._ev = self.kernel.at(t, self._run, prio=PRIO_CPU)
+
+    # --- running ---------------------------------------------------------------------------
+    def _limit(self, t0):
+        """The first tick no instruction of a quantum starting at t0 may reach."""
+        k = self.kernel
+        q = k._queue
+        while q and q[0][3].cancelled:
+            import heapq
+            heapq.heappop(q)
+        end = getattr(k, "end", None)
+        limit = end + 1 if end is not None else t0 + MAX_QUANTUM * self.step_ticks
+        if q:
+            t, prio = q[0][0], q[0][1]
+            if t == t0 and prio > PRIO_CPU:
+                t = t0 + 1                 # an observer at this tick sees the instruction at t0
+            limit = min(limit, t)
+        return limit
+
+    def _run(self):
+        self._ev = None
+        if self.state != "run":
+            return
+        t0 = self.kernel.now
+        if self.exc.take_pending(t0):
+            return                          # entry scheduled the next run after its latency
+        limit = self._limit(t0)
+        n = min(MAX_QUANTUM, -(-(limit - t0) // self.step_ticks))
+        if n <= 0:
+            self._schedule(t0 if limit > t0 else t0 + self.step_ticks)
+            return
+        if self.debug is not None:
+            n = self.debug.budget(n)
+        retired = self._emulate(t0, n, limit)
+        self.instructions += retired
+        self.cpu_time = t = t0 + retired * self.step_ticks
+        self.kernel.now = t0
+        stop, self._stop = self._stop, None
+        if stop is not None:
+            kind = stop[0]
+            if kind == "fault":
+                self._fault(stop[1], stop[2], t)
+            elif kind == "wfi" and not self.exc.wakes():
+                self.state = "sleep"
+                return
+            elif kind == "exc_return":
+                self.exc.exception_return(stop[1], t)
+            elif kind == "svc":
+                self.exc.svc(t)
+            elif kind == "debug":
+                self.debug.stopped(stop[1], t)
+                return
+        if self.debug is not None and self.debug.after_quantum(t):
+            return
+        if self._ev is None and self.state == "run":
+            self._schedule(t)
+
+    def _emulate(self, t0, n, limit) -> int:
+        """Run up to n instructions from t0; return how many retired."""
+        uc = self.uc
+        self._q_t0, self._q_limit = t0, limit
+        self._q_base, self._blk_addr, self._blk_n = 0, None, 0
+        self._in_emu = True
+        self._check = False
+        pc = uc.reg_read(A.UC_ARM_REG_PC)
+        try:
+            uc.emu_start(pc | 1, 0, count=n)
+            err = None
+        except UcError as exc:
+            err = exc
+        finally:
+            self._in_emu = False
+        pc = uc.reg_read(A.UC_ARM_REG_PC)
+        stop = self._stop
+        if err is not None and (stop is None or stop[0] != "fault"):
+            self._stop = ("fault", pc, self._uc_error_text(err, pc))
+            return self._q_base + self._index(self._blk_addr, pc)
+        if stop is not None and stop[0] == "exc_return":
+            return self._q_base + self._blk_n
+        if stop is not None and stop[0] == "fault":
+            return self._q_base + self._index(self._blk_addr, stop[1])
+        retired = self._q_base + self._index(self._blk_addr, pc) if self._blk_addr is not None else 0
+        if stop is None and retired < n and (pc - 2) in self._wfi:
+            self._stop = ("wfi",)
+        if stop is not None and stop[0] == "replay":
+            self._stop = None
+            self._replay = stop[1]
+            self._in_emu = True
+            self._q_base, self._blk_addr, self._blk_n = 0, None, 0
+            try:
+                uc.emu_start(pc | 1, 0, count=1)
+            except UcError as exc:
+                self._stop = ("fault", pc, self._uc_error_text(exc, pc))
+            finally:
+                self._in_emu = False
+                self._replay = []
+            retired += 1
+        return retired
+
+    def _uc_error_text(self, err, pc):
+        text = str(err)
+        if "UNMAPPED" in text.upper():
+            return f"access to unmapped memory ({text})"
+        if "PROT" in text.upper():
+            return f"access the memory does not allow ({text}; flash is not written by a store)"
+        if "INSN" in text.upper():
+            return "undefined instruction"
+        return text
+
+    def _fault(self, pc, what, t):
+        self.state = "fault"
+        self.fault = (pc, what)
+        secs = t / self.kernel.timebase.base_hz
+        raise CoreFault(f"HardFault at t = {float(secs):.9f} s: {what} at PC {pc:#010x} ({self.where(pc)})")
+
+    # --- hooks -----------------------------------------------------------------------------
+    def _index(self, addr, pc) -> int:
+        """Instructions from a block's start to pc (pc is an instruction boundary in it)."""
+        if addr is None:
+            return 0
+        offs = self._blocks.get(addr)
+        if offs is None or (offs and pc > addr + offs[-1]):
+            data = bytes(self.uc.mem_read(addr, max(pc - addr, 0) + 4))
+            offs, i = [], 0
+            while i < len(data) - 1:
+                offs.append(i)
+                i += _thumb_len(data[i] | data[i + 1] << 8)
+            self._blocks[addr] = offs = tuple(offs)
+        import bisect
+        return bisect.bisect_left(offs, pc - addr)
+
+    def _on_block(self, uc, address, size, _):
+        n = self._blk_n_cache.get((address, size))
+        if n is None:
+            n = self._blk_n_cache[(address, size)] = self._index(address, address + size)
+        self._q_base += self._blk_n
+        self._blk_addr, self._blk_n = address, n
+        if self.debug is not None and self.debug.breakpoints:
+            self.debug.check_block(address, size)
+
+    def _on_intr(self, uc, intno, _):
+        if self._stop is not None:
+            return
+        pc = uc.reg_read(A.UC_ARM_REG_PC)
+        if intno == INTNO_EXC_EXIT:
+            self._stop = ("exc_return", pc | 1)
+        elif intno == INTNO_SWI:
+            self._stop = ("svc",)
+        elif intno == INTNO_UDEF:
+            self._stop = ("fault", pc, "undefined instruction")
+        elif intno == 7:                         # EXCP_BKPT
+            self._stop = ("debug", "bkpt") if self.debug is not None else ("fault", pc, "BKPT with no debugger")
+        else:
+            self._stop = ("fault", pc, f"CPU exception {intno} (an invalid state or a return to a bad address)")
+        uc.emu_stop()
+
+    def _access_time(self, pc):
+        return self._q_t0 + (self._q_base + self._index(self._blk_addr, pc)) * self.step_ticks
+
+    def _mmio(self, uc, address, size, value):
+        """One peripheral access by the firmware; value None for a read. Returns the read value."""
+        if self._replay:
+            rec = self._replay.pop(0)
+            return rec[2]
+        pc = uc.reg_read(A.UC_ARM_REG_PC)
+        if pc != self._acc_pc:
+            self._acc_pc, self._acc = pc, []
+        if self._stop is not None:
+            return 0
+        k = self.kernel
+        k.now = self._access_time(pc)
+        try:
+            if value is None:
+                result = self.bus.read(address, size)
+            else:
+                self.bus.write(address, value, size)
+                result = 0
+        except McusimError as exc:
+            self._stop = ("fault", pc, str(exc))
+            uc.emu_stop()
+            return 0
+        except Exception as exc:   # noqa: BLE001 (a model bug: stop cleanly, report it)
+            self._stop = ("fault", pc, f"{type(exc).__name__} in a register model: {exc}")
+            uc.emu_stop()
+            return 0
+        self._acc.append((address, size, result))
+        if self.debug is not None and self.debug.watch_hit(address, size, value is not None):
+            self._stop = ("replay", list(self._acc))
+            self._debug_after = ("watch", address)
+            uc.emu_stop()
+            return result
+        nxt = k.next_time()
+        if (nxt is not None and nxt < self._q_limit) or (self._check and self.exc.can_preempt()):
+            self._stop = ("replay", list(self._acc))
+            uc.emu_stop()
+        self._check = False
+        return result
+
+    def _mmio_read(self, uc, offset, size, base):
+        # unicorn passes the offset within the mapped page
+        return self._mmio(uc, base + offset, size, None)
+
+    def _mmio_write(self, uc, offset, size, value, base):
+        self._mmio(uc, base + offset, size, value & ((1 << (8 * size)) - 1))
+
+    # --- helpers for tests, the debugger and the firmware object ---------------------------------
+    def read(self, address: int, length: int) -> bytes:
+        return bytes(self.uc.mem_read(address, length))
+
+    def write(self, address: int, data: bytes) -> None:
+        self.uc.mem_write(address, bytes(data))
+
+    def reg(self, name: str) -> int:
+        return self.uc.reg_read(getattr(A, f"UC_ARM_REG_{name.upper()}"))
+
+    def set_reg(self, name: str, value: int) -> None:
+        self.uc.reg_write(getattr(A, f"UC_ARM_REG_{name.upper()}"), value)

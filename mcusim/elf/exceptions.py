@@ -1,0 +1,218 @@
+"""The Cortex-M exception model (Armv7-M ARM B1.5), done by the simulator for the unicorn core.
+
+* Priorities: the NVIC's (``nvic.priority``, in implemented bits) for interrupts, SysTick and
+  PendSV, the SCB's SHPRx for the other system handlers; Reset -3, NMI -2, HardFault -1. With
+  AIRCR.PRIGROUP only the group (preemption) part decides preemption; the whole value orders
+  the pending ones (then the lower exception number).
+* Execution priority: the most urgent active exception, PRIMASK (0), FAULTMASK (-1), BASEPRI.
+* Entry: the frame (r0-r3, r12, lr, return address, xPSR; plus s0-s15 and FPSCR when
+  CONTROL.FPCA = 1: eager stacking, no lazy FP state) is pushed on the stack in use (PSP in
+  thread mode with CONTROL.SPSEL = 1, else MSP), 8-byte aligned with xPSR bit 9 marking the
+  padding; LR = EXC_RETURN, IPSR = the exception number, CONTROL.SPSEL = CONTROL.FPCA = 0,
+  PC = the vector at VTOR. The handler's first instruction runs ``entry_latency`` cycles later.
+* Return: ``bx lr`` (or ``pop {pc}``, ``ldr pc``) of an EXC_RETURN value in handler mode. If a
+  pending exception can preempt the context returned to, it is tail-chained (no unstacking;
+  it costs the entry latency); else the frame is popped and the mode, stack and FPCA restored.
+* SVC is taken at once if its priority can preempt, else it escalates to a fault (reported).
+"""
+
+from __future__ import annotations
+
+import struct
+
+from unicorn import arm_const as A
+
+THREAD = 1 << 16
+SVCALL, PENDSV_EXC, SYSTICK_EXC = 11, 14, 15
+_VALID_RETURNS = {0xFFFFFFF1, 0xFFFFFFF9, 0xFFFFFFFD, 0xFFFFFFE1, 0xFFFFFFE9, 0xFFFFFFED}
+_FIXED = {2: -2, 3: -1}                 # NMI, HardFault
+_FRAME_REGS = (A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3, A.UC_ARM_REG_R12,
+               A.UC_ARM_REG_LR)
+_S = tuple(getattr(A, f"UC_ARM_REG_S{i}") for i in range(16))
+
+
+class ExceptionModel:
+    def __init__(self, core):
+        self.core, self.uc, self.nvic = core, core.uc, core.nvic
+        self.vtor = 0
+        self.prigroup = 0
+        self.stkalign = True
+        self.sleeponexit = False
+        self.active: list[int] = []           # exception numbers, outermost first
+
+    # --- reset ---------------------------------------------------------------------------------
+    def reset(self, boot: int) -> None:
+        """Take SP and the reset vector from the vector table at ``boot``."""
+        from ..errors import ConfigError
+        core = self.core
+        m, off = core._region(boot, 8)
+        if m is None:
+            raise ConfigError(f"{core.image.path}: the vector table at {boot:#010x} is not in the board's memory")
+        sp, pc = struct.unpack_from("<II", m.view, off)
+        if sp == 0 and pc == 0:
+            raise ConfigError(f"{core.image.path}: no vector table at {boot:#010x} (initial SP and reset vector "
+                              "are 0): the image is not linked for this board's boot address")
+        if not pc & 1 or core._region(pc & ~1, 2)[0] is None:
+            raise ConfigError(f"{core.image.path}: the reset vector {pc:#010x} does not point to thumb code "
+                              "in the board's memory")
+        self.vtor = boot
+        uc = self.uc
+        uc.reg_write(A.UC_ARM_REG_CONTROL, 0)
+        uc.reg_write(A.UC_ARM_REG_MSP, sp & ~3)
+        uc.reg_write(A.UC_ARM_REG_PC, pc & ~1)
+        self.reset_sp, self.reset_pc = sp & ~3, pc & ~1
+
+    # --- priorities ------------------------------------------------------------------------------
+    def priority(self, exc: int) -> int:
+        """The group (preemption) priority of exception number ``exc``."""
+        if exc in _FIXED:
+            return _FIXED[exc]
+        return self.group(self.nvic.priority.get(exc - 16, 0))
+
+    def group(self, prio: int) -> int:
+        bits = self.nvic.prio_bits
+        return ((prio << (8 - bits)) & 0xFF) >> (self.prigroup + 1)
+
+    def execution_priority(self, primask=True) -> int:
+        p = THREAD
+        for e in self.active:
+            p = min(p, self.priority(e))
+        reg = self.uc.reg_read
+        base = reg(A.UC_ARM_REG_BASEPRI) & 0xFF
+        if base:
+            p = min(p, base >> (self.prigroup + 1))
+        if primask and reg(A.UC_ARM_REG_PRIMASK) & 1:
+            p = min(p, 0)
+        if reg(A.UC_ARM_REG_FAULTMASK) & 1:
+            p = min(p, -1)
+        return p
+
+    def _best(self):
+        best = self.nvic.best_pending()
+        return None if best is None else (self.group(best[0]), best[1] + 16)
+
+    def can_preempt(self) -> bool:
+        best = self._best()
+        return best is not None and best[0] < self.execution_priority()
+
+    def wakes(self) -> bool:
+        """WFI ends on an interrupt that would preempt were PRIMASK clear."""
+        best = self._best()
+        return best is not None and best[0] < self.execution_priority(primask=False)
+
+    def pending_exception(self):
+        best = self._best()
+        return None if best is None else best[1]
+
+    # --- entry ---------------------------------------------------------------------------------
+    def take_pending(self, t: int) -> bool:
+        best = self._best()
+        if best is None or best[0] >= self.execution_priority():
+            return False
+        self.enter(best[1], t)
+        return True
+
+    def _fault(self, what, t):
+        self.core._fault(self.uc.reg_read(A.UC_ARM_REG_PC), what, t)
+
+    def enter(self, exc: int, t: int, tail_return: int | None = None) -> None:
+        uc, core = self.uc, self.core
+        reg = uc.reg_read
+        xpsr = reg(A.UC_ARM_REG_XPSR)
+        control = reg(A.UC_ARM_REG_CONTROL)
+        if tail_return is None:
+            thread = not self.active and (xpsr & 0x1FF) == 0
+            use_psp = thread and bool(control & 2)
+            fp = bool(control & 4)
+            sp = reg(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP)
+            size = 0x68 if fp else 0x20
+            new = (sp - size) & 0xFFFFFFFF
+            pad = bool(new & 4) and self.stkalign
+            new &= ~4 if self.stkalign else ~0
+            ret = reg(A.UC_ARM_REG_PC)
+            saved = [reg(r) for r in _FRAME_REGS] + [ret, (xpsr & ~(1 << 9)) | (pad << 9) | (1 << 24)]
+            frame = struct.pack("<8I", *(v & 0xFFFFFFFF for v in saved))
+            if fp:
+                frame += struct.pack("<16I", *(reg(s) & 0xFFFFFFFF for s in _S))
+                frame += struct.pack("<II", reg(A.UC_ARM_REG_FPSCR) & 0xFFFFFFFF, 0)
+            if core._region(new, len(frame))[0] is None or core._region(new, len(frame))[0].kind != "ram":
+                self._fault(f"stacking for exception {exc} at SP {new:#010x} outside RAM (stack overflow?)", t)
+            uc.mem_write(new, frame)
+            exc_return = 0xFFFFFFE1 | (0 if fp else 0x10) | (8 if thread else 0) | (4 if use_psp else 0)
+            uc.reg_write(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP, new)
+        else:
+            exc_return = tail_return
+        uc.reg_write(A.UC_ARM_REG_CONTROL, control & ~6)
+        uc.reg_write(A.UC_ARM_REG_XPSR, (xpsr & 0xF8000000) | (1 << 24) | exc)
+        uc.reg_write(A.UC_ARM_REG_APSR_NZCV, xpsr & 0xF8000000)
+        uc.reg_write(A.UC_ARM_REG_LR, exc_return)
+        m, off = core._region(self.vtor + 4 * exc, 4)
+        vector = struct.unpack_from("<I", m.view, off)[0] if m is not None else 0
+        if not vector & 1 or core._region(vector & ~1, 2)[0] is None:
+            self._fault(f"exception {exc} has no valid vector at VTOR {self.vtor:#010x} + {4 * exc:#x} "
+                        f"({vector:#010x})", t)
+        uc.reg_write(A.UC_ARM_REG_PC, vector & ~1)
+        self.active.append(exc)
+        irqn = exc - 16
+        self.nvic.acknowledge(irqn)
+        core.isr_count[irqn] = core.isr_count.get(irqn, 0) + 1
+        core.stack.append(exc)
+        ticks = core.entry_latency * core.period
+        core.busy_ticks += ticks
+        core._schedule(t + ticks)
+
+    def svc(self, t: int) -> None:
+        if self.priority(SVCALL) >= self.execution_priority():
+            self._fault("SVC executed where SVCall cannot preempt (priority escalation to HardFault)", t)
+        self.enter(SVCALL, t)
+
+    # --- return --------------------------------------------------------------------------------
+    def exception_return(self, exc_return: int, t: int) -> None:
+        uc, core = self.uc, self.core
+        reg = uc.reg_read
+        exc = reg(A.UC_ARM_REG_IPSR) & 0x1FF
+        if exc_return not in _VALID_RETURNS:
+            self._fault(f"exception return with invalid EXC_RETURN {exc_return:#010x}", t)
+        if not self.active or self.active[-1] != exc:
+            self._fault(f"exception return from exception {exc}, which is not the active one "
+                        f"(active: {self.active})", t)
+        self.active.pop()
+        core.stack.pop()
+        self.nvic.complete(exc - 16)
+        thread = bool(exc_return & 8)
+        if thread and self.active:
+            self._fault(f"EXC_RETURN {exc_return:#010x} returns to thread mode while exceptions "
+                        f"{self.active} are active", t)
+        best = self._best()
+        if best is not None and best[0] < self.execution_priority():
+            self.enter(best[1], t, tail_return=exc_return)          # tail-chaining
+            return
+        use_psp = bool(exc_return & 4)
+        fp = not exc_return & 0x10
+        sp = reg(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP)
+        size = 0x68 if fp else 0x20
+        m, _ = core._region(sp, size)
+        if m is None:
+            self._fault(f"unstacking from SP {sp:#010x} outside memory", t)
+        raw = core.read(sp, size)
+        words = struct.unpack_from("<8I", raw)
+        xpsr = words[7]
+        ipsr = xpsr & 0x1FF
+        if thread != (ipsr == 0):
+            self._fault(f"EXC_RETURN {exc_return:#010x} and the stacked IPSR {ipsr} disagree (INVPC)", t)
+        for r, v in zip(_FRAME_REGS, words[:6]):
+            uc.reg_write(r, v)
+        control = reg(A.UC_ARM_REG_CONTROL)
+        uc.reg_write(A.UC_ARM_REG_XPSR, xpsr & ~(1 << 9))
+        uc.reg_write(A.UC_ARM_REG_APSR_NZCV, xpsr & 0xF8000000)
+        if fp:
+            for s, v in zip(_S, struct.unpack_from("<16I", raw, 0x20)):
+                uc.reg_write(s, v)
+            uc.reg_write(A.UC_ARM_REG_FPSCR, struct.unpack_from("<I", raw, 0x60)[0])
+        new_sp = (sp + size + (4 if xpsr & (1 << 9) else 0)) & 0xFFFFFFFF
+        control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
+        uc.reg_write(A.UC_ARM_REG_CONTROL, control)
+        uc.reg_write(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP, new_sp)
+        uc.reg_write(A.UC_ARM_REG_PC, words[6] & ~1)
+        if thread and self.sleeponexit and not self.wakes():
+            core.state = "sleep"

@@ -1,0 +1,118 @@
+"""Reading an ELF image: its loadable segments, its entry, its symbols (``image.symbols[name]``)
+and the function that holds a code address (``image.where(pc)`` -> ``"pid_update+0x1c"``).
+
+Every way an ELF can be unusable (not an ELF, not 32-bit little-endian ARM, no loadable segment)
+is one :class:`~mcusim.errors.ConfigError` naming the file.
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import ConfigError
+
+PF_X = 1
+
+
+@dataclass
+class Segment:
+    address: int        # load (physical) address: where the bytes sit at reset
+    data: bytes         # the file's bytes, padded with zeros to p_memsz
+    executable: bool
+
+
+@dataclass
+class ElfImage:
+    path: str
+    entry: int
+    segments: list
+    symbols: dict = field(default_factory=dict)        # name -> address (thumb bit clear)
+    sizes: dict = field(default_factory=dict)          # name -> st_size
+    _funcs: list = field(default_factory=list)         # sorted (start, end, name) of FUNC symbols
+    _starts: list = field(default_factory=list)
+
+    def where(self, pc: int) -> str:
+        """``name+0xoff`` of the function holding ``pc`` (or of the nearest symbol before it),
+        else the hex address."""
+        pc &= ~1
+        i = bisect.bisect_right(self._starts, pc) - 1
+        if i >= 0:
+            start, end, name = self._funcs[i]
+            if pc < end or end == start:
+                return name if pc == start else f"{name}+{pc - start:#x}"
+        return f"{pc:#010x}"
+
+    def function(self, pc: int) -> str | None:
+        """The name of the function whose range holds ``pc``, or None."""
+        pc &= ~1
+        i = bisect.bisect_right(self._starts, pc) - 1
+        if i >= 0 and self._funcs[i][0] <= pc < self._funcs[i][1]:
+            return self._funcs[i][2]
+        return None
+
+    def symbol(self, name: str) -> int:
+        try:
+            return self.symbols[name]
+        except KeyError:
+            raise ConfigError(f"{self.path}: no symbol {name!r} in the ELF's symbol table") from None
+
+
+def read_elf(path) -> ElfImage:
+    """Parse ``path`` (an ARM ELF executable); ConfigError for anything that cannot run."""
+    from elftools.common.exceptions import ELFError
+    from elftools.elf.elffile import ELFFile
+    from elftools.elf.sections import SymbolTableSection
+    where = str(path)
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"cannot read firmware {where!r}: {exc.strerror or exc}") from None
+    if raw[:4] != b"\x7fELF":
+        raise ConfigError(f"{where}: not an ELF file (it starts with {raw[:4]!r}); --firmware takes an ELF "
+                          "image built for the board's Cortex-M core")
+    import io
+    try:
+        elf = ELFFile(io.BytesIO(raw))
+        machine = elf["e_machine"]
+        if machine != "EM_ARM" or elf.elfclass != 32 or not elf.little_endian:
+            raise ConfigError(f"{where}: an ELF for {machine} ({elf.elfclass}-bit, "
+                              f"{'little' if elf.little_endian else 'big'}-endian); the board's core "
+                              "needs a 32-bit little-endian ARM (EM_ARM) image")
+        segments = []
+        for seg in elf.iter_segments():
+            if seg["p_type"] != "PT_LOAD" or seg["p_memsz"] == 0:
+                continue
+            data = seg.data()
+            if seg["p_filesz"] == 0:
+                continue            # .bss-like: zeroed by the startup code, nothing to load
+            segments.append(Segment(seg["p_paddr"], bytes(data), bool(seg["p_flags"] & PF_X)))
+        if not segments:
+            raise ConfigError(f"{where}: the ELF has no loadable segment (PT_LOAD with contents)")
+        image = ElfImage(where, elf["e_entry"], segments)
+        funcs = []
+        for sec in elf.iter_sections():
+            if not isinstance(sec, SymbolTableSection):
+                continue
+            for sym in sec.iter_symbols():
+                kind = sym["st_info"]["type"]
+                if not sym.name or kind not in ("STT_FUNC", "STT_OBJECT", "STT_NOTYPE") or \
+                        sym["st_shndx"] == "SHN_UNDEF" or sym.name.startswith("$"):
+                    continue
+                addr = sym["st_value"] & ~1 if kind == "STT_FUNC" else sym["st_value"]
+                if sym["st_info"]["bind"] == "STB_GLOBAL" or sym.name not in image.symbols:
+                    image.symbols[sym.name] = addr
+                    image.sizes[sym.name] = sym["st_size"]
+                if kind == "STT_FUNC":
+                    funcs.append((addr, addr + sym["st_size"], sym.name))
+    except ELFError as exc:
+        raise ConfigError(f"{where}: not a valid ELF file: {exc}") from None
+    except ConfigError:
+        raise
+    except (ValueError, KeyError, IndexError, AssertionError) as exc:   # a truncated or corrupt file
+        raise ConfigError(f"{where}: not a valid ELF file: {type(exc).__name__}: {exc}") from None
+    funcs.sort()
+    image._funcs = funcs
+    image._starts = [f[0] for f in funcs]
+    return image

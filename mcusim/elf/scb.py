@@ -1,0 +1,183 @@
+"""The Cortex-M system registers startup and HAL code touch, for a compiled image: SCB (CPUID,
+ICSR, VTOR, AIRCR, SCR, CCR, SHPR1-3, SHCSR, fault status, CPACR), the FPU's FPCCR, STIR,
+CoreDebug DEMCR and the DWT cycle counter (Armv7-M ARM B3.2, C1.8; the Cortex-M7 and -M4 TRMs
+for the reset values).
+
+Modelled: what these bits do to the exception model (:mod:`mcusim.elf.exceptions`): VTOR moves
+the vector table, AIRCR.PRIGROUP splits priorities, SHPRx set the system handlers' priorities,
+ICSR pends and clears PendSV and SysTick and reports the active and pending exception,
+SCR.SLEEPONEXIT sleeps on return to thread mode, CCR.STKALIGN aligns frames. Stored but without
+effect (the core cannot honour them, see docs/firmware.md): CPACR (unicorn runs FP instructions
+whatever it says), the caches' enable bits in CCR, FPCCR's lazy stacking (frames are stacked
+eagerly). AIRCR.SYSRESETREQ and the fault-trap bits are refused as not modelled.
+"""
+
+from __future__ import annotations
+
+from ..irq import PENDSV, SYSTICK
+from ..registers import Field, Peripheral, Register
+
+CPUID = {"cortex-m7": 0x411FC270, "cortex-m4": 0x410FC241}
+
+
+class CoreScb(Peripheral):
+    SIZE = 0x90
+    REGISTERS = (
+        Register("CPUID", 0x00, access="r"),
+        Register("ICSR", 0x04, on_read="_read_icsr", on_write="_write_icsr", fields=(
+            Field("VECTACTIVE", 0, 9, access="r"), Field("RETTOBASE", 11, access="r"),
+            Field("VECTPENDING", 12, 9, access="r"), Field("ISRPENDING", 22, access="r"),
+            Field("PENDSTCLR", 25, access="w"), Field("PENDSTSET", 26, access="w"),
+            Field("PENDSVCLR", 27, access="w"), Field("PENDSVSET", 28, access="w"),
+            Field("NMIPENDSET", 31, modelled=False))),
+        Register("VTOR", 0x08, on_write="_write_vtor", fields=(Field("TBLOFF", 7, 25),)),
+        Register("AIRCR", 0x0C, on_read="_read_aircr", on_write="_write_aircr", fields=(
+            Field("VECTRESET", 0, modelled=False), Field("VECTCLRACTIVE", 1, modelled=False),
+            Field("SYSRESETREQ", 2, modelled=False), Field("PRIGROUP", 8, 3),
+            Field("ENDIANNESS", 15, access="r"), Field("VECTKEY", 16, 16, access="w"))),
+        Register("SCR", 0x10, on_write="_write_scr", fields=(
+            Field("SLEEPONEXIT", 1), Field("SLEEPDEEP", 2), Field("SEVONPEND", 4))),
+        Register("CCR", 0x14, reset=0x200, on_write="_write_ccr", fields=(
+            Field("NONBASETHRDENA", 0, modelled=False), Field("USERSETMPEND", 1, modelled=False),
+            Field("UNALIGN_TRP", 3, modelled=False), Field("DIV_0_TRP", 4, modelled=False),
+            Field("BFHFNMIGN", 8, modelled=False), Field("STKALIGN", 9), Field("DC", 16), Field("IC", 17),
+            Field("BP", 18))),
+        Register("SHPR1", 0x18, on_write="_write_shpr"),
+        Register("SHPR2", 0x1C, on_write="_write_shpr"),
+        Register("SHPR3", 0x20, on_write="_write_shpr"),
+        Register("SHCSR", 0x24, fields=(Field("MEMFAULTENA", 16), Field("BUSFAULTENA", 17),
+                                          Field("USGFAULTENA", 18))),
+        Register("CFSR", 0x28, access="rc_w1"),
+        Register("HFSR", 0x2C, access="rc_w1"),
+        Register("MMFAR", 0x34),
+        Register("BFAR", 0x38),
+        Register("CPACR", 0x88, fields=(Field("CP10", 20, 2), Field("CP11", 22, 2))),
+    )
+
+    def __init__(self, nvic, exc_model, kind="cortex-m7", name="SCB"):
+        super().__init__(name)
+        self.nvic, self.exc = nvic, exc_model
+        self.value["CPUID"] = CPUID.get(kind, CPUID["cortex-m4"])
+        self.value["VTOR"] = exc_model.vtor
+
+    def _read_icsr(self, stored):
+        exc = self.exc
+        active = exc.active[-1] if exc.active else 0
+        pend = exc.pending_exception() or 0
+        v = active | (pend << 12)
+        if len(exc.active) <= 1:
+            v |= 1 << 11
+        if any(n >= 0 for n in self.nvic.pending):
+            v |= 1 << 22
+        if PENDSV in self.nvic.pending:
+            v |= 1 << 28
+        if SYSTICK in self.nvic.pending:
+            v |= 1 << 26
+        return v
+
+    def _write_icsr(self, old, new):
+        for bit, irqn, setting in ((28, PENDSV, True), (27, PENDSV, False), (26, SYSTICK, True),
+                                   (25, SYSTICK, False)):
+            if new >> bit & 1:
+                if setting:
+                    self.nvic.set_pending(irqn)
+                else:
+                    self.nvic.pending.discard(irqn)
+
+    def _write_vtor(self, old, new):
+        self.exc.vtor = new
+
+    def _read_aircr(self, stored):
+        return (0xFA05 << 16) | (stored & 0x700)
+
+    def _write_aircr(self, old, new):
+        from ..errors import UnsupportedConfiguration
+        if new >> 16 != 0x05FA:
+            self.value["AIRCR"] = old         # a write without the key is ignored
+            return
+        if new & 0x7:
+            raise UnsupportedConfiguration(self.name, "AIRCR", "SYSRESETREQ", new & 7, "(a reset request) is not modelled")
+        self.exc.prigroup = (new >> 8) & 7
+
+    def _write_scr(self, old, new):
+        self.exc.sleeponexit = bool(new & 2)
+
+    def _write_ccr(self, old, new):
+        self.exc.stkalign = bool(new & 0x200)
+
+    def _write_shpr(self, old, new):
+        # SHPR1: MemManage(4) BusFault(5) UsageFault(6); SHPR2: SVCall(11); SHPR3: PendSV(14) SysTick(15)
+        shift = 8 - self.nvic.prio_bits
+        keep = (0xFF << shift) & 0xFF
+        for reg, first in (("SHPR1", 4), ("SHPR2", 8), ("SHPR3", 12)):
+            v = self.value[reg] & (keep * 0x01010101)
+            self.value[reg] = v
+            for b in range(4):
+                exc = first + b
+                if exc in (4, 5, 6, 11, 14, 15):
+                    self.nvic.priority[exc - 16] = ((v >> (8 * b)) & 0xFF) >> shift
+        self.nvic._changed()
+
+
+class Fpu(Peripheral):
+    """FPCCR, FPCAR, FPDSCR at 0xE000EF34 (base 0xE000EF30): stored; stacking is eager."""
+    SIZE = 0x10
+    REGISTERS = (Register("FPCCR", 0x4, reset=0xC0000000), Register("FPCAR", 0x8), Register("FPDSCR", 0xC))
+
+
+class Stir(Peripheral):
+    """Software Trigger Interrupt Register (0xE000EF00): writing n pends interrupt n."""
+    SIZE = 0x4
+    REGISTERS = (Register("STIR", 0x0, access="w", on_write="_write"),)
+
+    def __init__(self, nvic, name="STIR"):
+        super().__init__(name)
+        self.nvic = nvic
+
+    def _write(self, old, new):
+        if (new & 0x1FF) < self.nvic.num_irqs:
+            self.nvic.set_pending(new & 0x1FF)
+
+
+class CoreDebug(Peripheral):
+    """DHCSR, DCRSR, DCRDR, DEMCR at 0xE000EDF0: DEMCR.TRCENA gates the DWT (stored)."""
+    SIZE = 0x10
+    REGISTERS = (Register("DHCSR", 0x0, access="r"), Register("DCRSR", 0x4, access="w"), Register("DCRDR", 0x8),
+                 Register("DEMCR", 0xC))
+
+
+class Dwt(Peripheral):
+    """DWT_CTRL and DWT_CYCCNT (0xE0001000): CYCCNT counts core cycles while CYCCNTENA = 1."""
+    SIZE = 0x1000
+    REGISTERS = (
+        Register("CTRL", 0x0, reset=0x40000000, on_write="_write_ctrl", fields=(
+            Field("CYCCNTENA", 0), Field("NUMCOMP", 28, 4, access="r"))),
+        Register("CYCCNT", 0x4, on_read="_read_cyccnt", on_write="_write_cyccnt"),
+        Register("LAR", 0xFB0, access="w"),
+    )
+
+    def __init__(self, mcu, name="DWT"):
+        super().__init__(name)
+        self.kernel, self.period = mcu.kernel, mcu.core_clock.period
+        self._base = None          # (cycle at which CYCCNT held _val)
+        self._val = 0
+
+    def _cycles(self):
+        return self.kernel.now // self.period
+
+    def _read_cyccnt(self, stored):
+        if self._base is None:
+            return self._val
+        return (self._val + self._cycles() - self._base) & 0xFFFFFFFF
+
+    def _write_cyccnt(self, old, new):
+        self._val = new
+        self._base = self._cycles() if self._base is not None else None
+
+    def _write_ctrl(self, old, new):
+        on = bool(new & 1)
+        if on and self._base is None:
+            self._base = self._cycles()
+        elif not on and self._base is not None:
+            self._val = self._read_cyccnt(0)
+            self._base = None

@@ -1,0 +1,45 @@
+"""Building the compiled-firmware side of a board: memories, core, system registers, firmware."""
+
+from __future__ import annotations
+
+from ..errors import ConfigError
+from .image import read_elf
+from .memory import build_memories
+
+
+def check_elf_board(profile: dict, where: str, path) -> tuple:
+    """The ELF and the board's memories, or ConfigError if this board cannot run it."""
+    core = profile.get("core", {})
+    if not str(core.get("kind", "")).startswith("cortex-m"):
+        raise ConfigError(f"{where}: --firmware runs a Cortex-M ELF; this board's core is {core.get('kind')!r}")
+    if not profile.get("memory"):
+        raise ConfigError(f"{where}: the board declares no [[memory]] regions, so it cannot load an ELF "
+                          "(see docs/boards.md, [[memory]])")
+    image = read_elf(path)
+    return image, build_memories(profile["memory"])
+
+
+def attach_memories(bus, memories) -> None:
+    for m in memories:
+        for base in (m.base, *m.aliases):
+            bus.attach(base, m, m.size)
+
+
+def build_core(profile: dict, mcu, image, memories):
+    """The unicorn core, the SCB/DWT/FPU/STIR/CoreDebug registers; returns the core."""
+    from .core import CortexMCore
+    from .scb import CoreDebug, CoreScb, Dwt, Fpu, Stir
+    core_spec = profile["core"]
+    kind = core_spec.get("kind", "cortex-m4")
+    bus = mcu.bus
+    bus.attach(0xE000EDF0, CoreDebug("CoreDebug"))
+    bus.attach(0xE000EF00, Stir(mcu.nvic))
+    bus.attach(0xE000EF30, Fpu("FPU"))
+    bus.attach(0xE0001000, Dwt(mcu))
+    core = CortexMCore(mcu, image, memories, kind=kind, cpi=core_spec.get("cycles_per_instruction", 1),
+                       entry_latency=core_spec.get("entry_latency", 12),
+                       boot_address=core_spec.get("boot_address", 0))
+    scb = CoreScb(mcu.nvic, core.exc, kind)
+    bus.attach(0xE000ED00, scb)           # on the NVIC's page, already mapped into the core
+    mcu.periph["SCB"] = scb
+    return core
