@@ -94,6 +94,24 @@ def _sample(text: str) -> Fraction:
     return d
 
 
+def _port(text: str) -> int:
+    if not text.isdigit() or not 0 < int(text) < 65536:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a TCP port number from 1 to 65535")
+    return int(text)
+
+
+def _firmware(args):
+    """What ``load(firmware=...)`` takes: the ELF's path, or whether the profile's firmware runs."""
+    elf = getattr(args, "firmware", None)
+    if elf is None:
+        if getattr(args, "gdb", None) is not None:
+            raise ConfigError("--gdb debugs a compiled image: give --firmware APP.ELF")
+        return not args.no_firmware
+    if args.no_firmware:
+        raise ConfigError("--firmware and --no-firmware contradict each other")
+    return elf
+
+
 def _repeat(text: str) -> int:
     try:
         n = int(text)
@@ -114,6 +132,10 @@ def _common_arguments(r, default_duration: str, what: str) -> None:
                    help="topic (/motor1/set_pos=1.57), input (velocity=10) or parameter "
                         "(motor1.J=6e-6, firmware.variant=thesis); repeatable")
     r.add_argument("--no-firmware", action="store_true", help="peripherals and plant only")
+    r.add_argument("--firmware", metavar="APP.ELF", help="run a compiled Cortex-M image instead of the "
+                   "profile's firmware (docs/firmware.md)")
+    r.add_argument("--gdb", type=_port, metavar="PORT", help="with --firmware: wait for gdb on this TCP port "
+                   "(target extended-remote :PORT), halted at reset")
     r.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
     r.add_argument("--strict", action="store_true",
                    help="specification limits are errors, not warnings (an ADC clock above 4.5 MHz)")
@@ -167,6 +189,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--engine", choices=ENGINES + ("both",), default=DEFAULT_ENGINE,
                    help="fast (default), reference, or both alternately in one process with the speedup")
     b.add_argument("--json", metavar="FILE", help="write the figures as JSON")
+    b.add_argument("--firmware", metavar="APP.ELF", help="bench a compiled Cortex-M image instead of the "
+                   "profile's firmware")
     return p
 
 
@@ -201,7 +225,7 @@ def _run_sets(args) -> dict:
     unless the user gives a topic or input of their own (which replace it), then the user's."""
     from .board import is_input_key, read_profile
     user = dict(args.sets)
-    if args.no_firmware:
+    if args.no_firmware or getattr(args, "firmware", None):   # the demo command is the profile firmware's
         return user
     profile = read_profile(args.board)[0]
     demo = profile.get("run", {}).get("set", {})
@@ -220,7 +244,7 @@ def _build(args, scenario, log_target):
     with (capture_startup() if log_target is not None else nullcontext()) as startup:
         try:
             if scenario is not None:
-                sim = scenario.build(args.board, dict(args.sets), not args.no_firmware, engine=args.engine)
+                sim = scenario.build(args.board, dict(args.sets), _firmware(args), engine=args.engine)
                 for p in sim.peripherals() if args.strict else ():
                     if hasattr(p, "strict"):
                         p.strict = True
@@ -230,7 +254,7 @@ def _build(args, scenario, log_target):
                     sim.discard()
                     raise
             else:
-                sim = load(args.board, firmware=not args.no_firmware, overrides=_run_sets(args), strict=args.strict,
+                sim = load(args.board, firmware=_firmware(args), overrides=_run_sets(args), strict=args.strict,
                            engine=args.engine)
         except BaseException:
             if startup is not None:
@@ -328,6 +352,9 @@ def cmd_run(args) -> int:
             except TimeError:
                 raise ConfigError(f"--sample {fmt_duration(args.sample)}: not a whole number of base ticks "
                                   f"(1/{sim.timebase.base_hz} s); try 1ms or 100us") from None
+        if args.gdb is not None:
+            from .elf.gdb import GdbServer
+            GdbServer(sim, args.gdb).wait_for_client()
         vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
         csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
                              keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)
@@ -390,13 +417,13 @@ def cmd_trace(args) -> int:
     return cmd_run(args)
 
 
-def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE) -> dict:
+def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True) -> dict:
     """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run.
     ``engine="both"`` runs the fast and the reference engine alternately in this process and adds
     ``reference_realtime_factor`` and ``speedup`` (fast over reference)."""
     if engine == "both":
         fast, ref = {}, {}
-        runs = [bench(board, duration, 1, e) for _ in range(repeat) for e in ENGINES]
+        runs = [bench(board, duration, 1, e, firmware) for _ in range(repeat) for e in ENGINES]
         fast = _median_of([r for r in runs if r["engine"] == "fast"])
         ref = _median_of([r for r in runs if r["engine"] == "reference"])
         fast["reference_realtime_factor"] = ref["realtime_factor"]
@@ -410,14 +437,15 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE) -
     scenario = profile.get("bench", {}).get("set") or profile.get("run", {}).get("set", {})
     runs = []
     for _ in range(repeat):
-        sim = load(board, overrides=dict(scenario), engine=engine)
+        sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
         t0 = time.perf_counter()
         try:
             sim.run(seconds=duration)
         finally:
             sim.close()
         wall = time.perf_counter() - t0
-        runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"]))
+        runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"],
+                     getattr(sim.mcu.cpu, "instructions", None)))
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
@@ -425,7 +453,9 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE) -
                                                   for k, v in scenario.items()),
             "simulated_s": sim_s, "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
-            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3]}
+            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3],
+            **({"instructions": runs[0][4], "instructions_per_wall_s": runs[0][4] / wall}
+               if runs[0][4] is not None else {})}
 
 
 def _median_of(runs: list) -> dict:
@@ -447,7 +477,7 @@ def cmd_bench(args) -> int:
     out = outs.add("--json", args.json) if args.json else None
     outs.check()
     try:
-        r = bench(args.board, args.duration, args.repeat, args.engine)
+        r = bench(args.board, args.duration, args.repeat, args.engine, args.firmware or True)
         if out is not None:
             with open(out.target, "w") as f:
                 json.dump(r, f, indent=2)
@@ -462,6 +492,8 @@ def cmd_bench(args) -> int:
     print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s ({name} engine, "
           f"{100 * r['fast_fraction']:.0f} % of the motor time in whole-period chunks); "
           f"{r['events']:,} events ({r['events_per_wall_s']:,.0f} per wall s)")
+    if "instructions" in r:
+        print(f"{r['instructions']:,} instructions ({r['instructions_per_wall_s']:,.0f} per wall s)")
     if r["engine"] == "both":
         print(f"reference engine {r['reference_realtime_factor']:.3f}; speedup {r['speedup']:.1f}x "
               f"(fast over reference, measured in this process)")

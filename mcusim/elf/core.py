@@ -26,18 +26,27 @@ takes it when the architecture says so. How it runs:
 
 from __future__ import annotations
 
-from unicorn import (
+from typing import ClassVar
+
+from unicorn import Uc, UcError
+from unicorn import arm_const as A
+from unicorn.unicorn_const import (
     UC_ARCH_ARM,
     UC_HOOK_BLOCK,
     UC_HOOK_INTR,
+    UC_HOOK_MEM_FETCH_UNMAPPED,
+    UC_HOOK_MEM_PROT,
+    UC_HOOK_MEM_READ_UNMAPPED,
+    UC_HOOK_MEM_WRITE_UNMAPPED,
+    UC_MEM_FETCH_UNMAPPED,
+    UC_MEM_READ_UNMAPPED,
+    UC_MEM_WRITE_PROT,
+    UC_MEM_WRITE_UNMAPPED,
     UC_MODE_THUMB,
     UC_PROT_ALL,
     UC_PROT_EXEC,
     UC_PROT_READ,
-    Uc,
-    UcError,
 )
-from unicorn import arm_const as A
 
 from ..errors import ConfigError, McusimError
 from ..kernel import PRIO_CPU
@@ -79,6 +88,8 @@ class CortexMCore:
         self._map_peripherals()
         uc.hook_add(UC_HOOK_BLOCK, self._on_block)
         uc.hook_add(UC_HOOK_INTR, self._on_intr)
+        uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED
+                    | UC_HOOK_MEM_PROT, self._on_bad_access)
         self.exc = ExceptionModel(self)
         self._blocks: dict[int, tuple] = {}
         self._blk_n_cache: dict[tuple, int] = {}
@@ -317,6 +328,19 @@ class CortexMCore:
         self._blk_addr, self._blk_n = address, n
         if self.debug is not None and self.debug.breakpoints:
             self.debug.check_block(address, size)
+
+    _ACCESS: ClassVar[dict] = {UC_MEM_READ_UNMAPPED: "read of unmapped", UC_MEM_WRITE_UNMAPPED: "write to unmapped",
+               UC_MEM_FETCH_UNMAPPED: "instruction fetch from unmapped", UC_MEM_WRITE_PROT: "write to read-only"}
+
+    def _on_bad_access(self, uc, access, address, size, value, _):
+        if self._stop is None:
+            what = self._ACCESS.get(access, "access not allowed to")
+            extra = " (flash is programmed through the flash interface, not by a store)" \
+                if access == UC_MEM_WRITE_PROT else ""
+            pc = uc.reg_read(A.UC_ARM_REG_PC)
+            self._stop = ("fault", address if access == UC_MEM_FETCH_UNMAPPED else pc,
+                          f"{8 * size}-bit {what} memory at {address:#010x}{extra}")
+        return False
 
     def _on_intr(self, uc, intno, _):
         if self._stop is not None:

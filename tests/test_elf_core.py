@@ -1,0 +1,246 @@
+"""Compiled Cortex-M images on the simulated bus: the load rules, the Cortex-M exception model
+(Armv7-M ARM B1.5), the cycle model and fault reports.
+
+The images are built from tests/elf_src by tests/elf_build.py and committed in tests/elf_bin, so
+these tests run without the toolchain; test_committed_images_match_their_sources rebuilds them
+when arm-none-eabi-gcc is installed.
+"""
+
+from __future__ import annotations
+
+import itertools
+import shutil
+import struct
+
+import pytest
+from elf_build import BIN, IMAGES, build, gcc
+
+import mcusim
+from mcusim.cli import main
+from mcusim.elf.core import CoreFault
+from mcusim.errors import BusFault, ConfigError
+
+
+def elf(name):
+    return str(BIN / f"{name}.elf")
+
+
+def load(name, board="nucleo-f746", **kw):
+    return mcusim.load(board, firmware=elf(name), **kw)
+
+
+def word(sim, name, index=0):
+    return sim.mcu.read32(sim.firmware.symbols[name] + 4 * index)
+
+
+# --- loading ------------------------------------------------------------------------------------------
+def test_segments_load_at_their_load_address_and_symbols_are_kept(tmp_path):
+    sim = load("ticks")
+    syms = sim.firmware.symbols
+    vectors = syms["vectors"]
+    assert vectors == 0x08000000
+    # the vector table as the image holds it, through the bus, at flash and at its ITCM alias
+    sp, reset = sim.mcu.read32(0x08000000), sim.mcu.read32(0x08000004)
+    assert sim.mcu.read32(0x00200004) == reset == syms["Reset_Handler"] | 1
+    assert sp == 0x20050000                                    # _estack = end of RAM (link.ld)
+    assert sim.mcu.cpu.reg("msp") == sp and sim.mcu.cpu.pc == syms["Reset_Handler"]
+
+
+def test_data_is_copied_by_the_startup_code_from_its_load_address():
+    sim = load("exc")
+    sim.run(seconds="10us")
+    assert word(sim, "r4_after") == 0 and word(sim, "n_trace") > 0   # .bss zeroed, then used
+
+
+def test_bus_reaches_ram_both_ways():
+    sim = load("ticks")
+    sim.run(seconds="5ms")
+    addr = sim.firmware.symbols["ticks"]
+    assert sim.mcu.read32(addr) == sim.firmware.topic("/ticks") > 0
+    sim.mcu.write32(addr, 1000)
+    sim.run(seconds="1ms")
+    assert 1000 < sim.firmware.topic("/ticks") <= 1002
+
+
+def test_a_store_to_flash_from_the_host_is_refused():
+    sim = load("ticks")
+    with pytest.raises(BusFault, match="flash"):
+        sim.mcu.write32(0x08000000, 0)
+
+
+def test_not_an_elf_is_one_clear_error(tmp_path):
+    bad = tmp_path / "app.elf"
+    bad.write_text("hello")
+    with pytest.raises(ConfigError, match="not an ELF file"):
+        mcusim.load("nucleo-f746", firmware=str(bad))
+
+
+def test_wrong_machine_is_one_clear_error(tmp_path):
+    data = bytearray((BIN / "ticks.elf").read_bytes())
+    struct.pack_into("<H", data, 18, 62)            # e_machine = EM_X86_64
+    bad = tmp_path / "x86.elf"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match="EM_X86_64.*32-bit little-endian ARM"):
+        mcusim.load("nucleo-f746", firmware=str(bad))
+
+
+def test_no_loadable_segment_is_one_clear_error(tmp_path):
+    data = bytearray((BIN / "ticks.elf").read_bytes())
+    phoff, phentsize, phnum = struct.unpack_from("<I", data, 28)[0], *struct.unpack_from("<HH", data, 42)
+    for i in range(phnum):
+        struct.pack_into("<I", data, phoff + i * phentsize, 4)      # p_type = PT_NOTE
+    bad = tmp_path / "empty.elf"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match="no loadable segment"):
+        mcusim.load("nucleo-f746", firmware=str(bad))
+
+
+def test_segment_outside_the_boards_memory_is_one_clear_error():
+    with pytest.raises(ConfigError, match="segment at 0x08000000.*outside the board's memory"):
+        load("ticks", board="ciaa-edu")
+
+
+def test_a_board_without_a_cortex_m_core_refuses_an_elf():
+    with pytest.raises(ConfigError, match="Cortex-M ELF"):
+        load("ticks", board="pro-mini")
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "nucleo-f746", "--firmware", "missing.elf"],
+    ["run", "ciaa-edu", "--firmware", elf("ticks")],
+    ["run", "nucleo-f746", "--firmware", elf("ticks"), "--no-firmware"],
+    ["run", "nucleo-f746", "--gdb", "3333"],
+    ["run", "nucleo-f746", "--firmware", elf("ticks"), "--set", "firmware.kp=3"],
+])
+def test_cli_load_mistakes_exit_2(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("mcusim: error:") and err.count("\n") == 1
+
+
+def test_cli_runs_an_elf_and_topics_reach_its_globals(capsys):
+    assert main(["run", "nucleo-f746", "--firmware", elf("ticks"), "--duration", "20ms",
+                 "--set", "/set_point=1.25", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "/doubled = 2.500" in out and "/ticks = 19" in out
+
+
+def test_topic_writes_before_main_survive_the_startup_code_and_count():
+    sim = load("ticks", overrides={"/set_point": 0.75})
+    sim.run(seconds="2ms")
+    assert sim.firmware.topic("/doubled") == 1.5
+    assert word(sim, "set_point_count") == 1
+    sim.publish("/set_point", -2.0)
+    assert word(sim, "set_point_count") == 2
+    sim.run(seconds="2ms")
+    assert sim.firmware.topic("/doubled") == -4.0
+
+
+def test_topic_map_mistakes_are_named():
+    sim = load("ticks")
+    with pytest.raises(ConfigError, match="no subscribed topic '/ticks'"):
+        sim.publish("/ticks", 3)
+    with pytest.raises(ConfigError, match="expected a finite number"):
+        sim.publish("/set_point", "fast")
+
+
+# --- the exception model ----------------------------------------------------------------------------
+def test_nesting_by_priority_and_tail_chaining():
+    sim = load("exc")
+    sim.run(seconds="1ms")
+    trace = [word(sim, "trace", i) for i in range(word(sim, "n_trace"))]
+    # IRQ0 (0xC0) runs; IRQ1 (0x40) preempts it at once; IRQ2 (0xE0) waits for IRQ0's end and is
+    # tail-chained before thread mode resumes
+    assert trace == [0x10, 0x20, 0x11, 0x12, 0x30, 0x01, 0x02]
+    assert word(sim, "ipsr_in_irq1") == 16 + 1
+    assert word(sim, "lr_in_irq0") == 0xFFFFFFF9          # thread mode, MSP, no FP frame
+
+
+def test_an_access_that_pends_an_interrupt_ends_the_quantum_after_that_instruction():
+    sim = load("exc")
+    sim.run(seconds="1ms")
+    assert word(sim, "stacked_pc") == sim.firmware.symbols["pend_irq3_next"]
+
+
+def test_stacking_with_and_without_the_fp_frame():
+    sim = load("fpframe")
+    sim.run(seconds="1ms")
+    sp_main = word(sim, "sp_main")
+    assert word(sim, "lr0") == 0xFFFFFFF9 and word(sim, "sp0") == sp_main - 0x20     # 8 words
+    assert word(sim, "control_main") & 4                                          # FPCA after FP use
+    assert word(sim, "lr1") == 0xFFFFFFE9 and word(sim, "sp1") == sp_main - 0x68  # 26 words
+    assert word(sim, "fp_ok") == 1            # s0, s5, s15 restored after the handler changed them
+
+
+def test_pendsv_context_switch_between_two_psp_threads():
+    sim = load("rtos")
+    sim.run(seconds="10ms")
+    assert word(sim, "svc_calls") == 1
+    ticks, switches = word(sim, "ticks"), word(sim, "switches")
+    assert ticks == switches and 95 <= ticks <= 100                   # SysTick every 100 us
+    assert word(sim, "count_a") > 1000 and word(sim, "count_b") > 1000
+    assert word(sim, "errors") == 0                                    # r4, r5, r11 kept per task
+    assert sim.mcu.cpu.reg("control") & 2                              # thread mode runs on PSP
+
+
+def test_wfi_sleeps_until_the_interrupt_and_costs_no_instructions():
+    sim = load("ticks")
+    sim.run(seconds="100ms")
+    core = sim.mcu.cpu
+    assert core.state == "sleep"
+    assert core.isr_count == {-1: 99, 28: 100}
+    assert core.instructions < 30 * 200       # a few dozen instructions per interrupt, none asleep
+
+
+# --- the cycle model ---------------------------------------------------------------------------------
+def test_one_cycle_per_instruction_between_two_cyccnt_reads():
+    sim = load("cycles")
+    sim.run(seconds="1ms")
+    assert word(sim, "c1") - word(sim, "c0") == 11           # ldr, ten nops: 11 instructions
+
+
+def test_interrupts_from_wfi_enter_exactly_one_period_apart():
+    sim = load("cycles")
+    sim.run(seconds="1ms")
+    entries = [word(sim, "entries", i) for i in range(word(sim, "n_entries"))]
+    assert len(entries) == 8
+    assert {b - a for a, b in itertools.pairwise(entries)} == {10000}   # SysTick LOAD + 1
+
+
+def test_cycles_per_instruction_from_the_profile(tmp_path):
+    text = mcusim.board.shipped_text("nucleo-f746").replace("cycles_per_instruction = 1",
+                                                             "cycles_per_instruction = 3")
+    prof = tmp_path / "slow.toml"
+    prof.write_text(text)
+    sim = mcusim.load(str(prof), firmware=elf("cycles"))
+    sim.run(seconds="1ms")
+    assert word(sim, "c1") - word(sim, "c0") == 33
+
+
+# --- faults ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("which, what, where", [
+    (1, "32-bit read of unmapped memory at 0x60000000", "bad_read+0x"),
+    (2, "undefined instruction", "bad_insn"),
+    (3, "32-bit write to read-only memory at 0x08000100", "flash_write+0x"),
+    (4, "SVC executed where SVCall cannot preempt", "svc_masked+0x"),
+])
+def test_hardfault_is_reported_with_pc_symbol_and_time(which, what, where):
+    sim = load("faults", overrides={"/which": which})
+    with pytest.raises(CoreFault, match=r"HardFault at t = 0\.0000\d+ s: .*") as info:
+        sim.run(seconds="1ms")
+    assert what in str(info.value) and f"({where}" in str(info.value)
+
+
+def test_a_fault_in_the_cli_names_the_simulated_time(capsys):
+    assert main(["run", "nucleo-f746", "--firmware", elf("faults"), "--set", "/which=1", "-q",
+                 "--duration", "1ms"]) == 1
+    err = capsys.readouterr().err
+    assert "HardFault" in err and "bad_read" in err and "simulated t =" in err
+
+
+# --- the images match their sources ------------------------------------------------------------------
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+@pytest.mark.parametrize("name", IMAGES)
+def test_committed_images_match_their_sources(name, tmp_path):
+    assert gcc() is not None
+    assert build(name, tmp_path).read_bytes() == (BIN / f"{name}.elf").read_bytes()
