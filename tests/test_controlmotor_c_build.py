@@ -4,6 +4,7 @@ types and sizes the topics file declares, a vector table whose reset vector is a
 flash, and loadable segments inside the STM32F746's memory map."""
 
 import io
+import re
 import shutil
 import subprocess
 import tomllib
@@ -140,22 +141,29 @@ def _compiler_of(image):
     return Image(image).elf.get_section_by_name(".comment").data().rstrip(b"\0").decode()
 
 
-@pytest.mark.skipif(not (shutil.which("arm-none-eabi-gcc") and shutil.which("make")),
-                    reason="arm-none-eabi-gcc (Debian gcc-arm-none-eabi) or make is not installed")
-def test_make_check_rebuilds_the_committed_images_byte_for_byte():
+needs_toolchain = pytest.mark.skipif(not (shutil.which("arm-none-eabi-gcc") and shutil.which("make")),
+                                     reason="arm-none-eabi-gcc (Debian gcc-arm-none-eabi) or make is not installed")
+
+
+def _same_compiler():
+    """Byte-for-byte equality holds for the compiler that built the images; skip under another."""
     version = subprocess.run(["arm-none-eabi-gcc", "--version"], capture_output=True, text=True,
                              check=True).stdout.splitlines()[0]
     built_with = _compiler_of("controlmotor.elf")            # "GCC: (15:12.2.rel1-1) 12.2.1 20221205"
     if built_with.removeprefix("GCC: ") != version.removeprefix("arm-none-eabi-gcc "):
         pytest.skip(f"the images were built by {built_with!r}, this compiler is {version!r}")
+
+
+@needs_toolchain
+def test_make_check_rebuilds_the_committed_images_byte_for_byte():
+    _same_compiler()
     r = subprocess.run(["make", "-s", "-C", str(FW), "check"], capture_output=True, text=True, timeout=300,
                        check=False)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "match a fresh build" in r.stdout
 
 
-@pytest.mark.skipif(not (shutil.which("arm-none-eabi-gcc") and shutil.which("make")),
-                    reason="arm-none-eabi-gcc (Debian gcc-arm-none-eabi) or make is not installed")
+@needs_toolchain
 def test_make_check_fails_on_a_stale_committed_image(tmp_path):
     copy = tmp_path / "controlmotor_c"
     shutil.copytree(FW, copy, ignore=shutil.ignore_patterns("build"))
@@ -167,3 +175,22 @@ def test_make_check_fails_on_a_stale_committed_image(tmp_path):
                        check=False)
     assert r.returncode != 0
     assert "controlmotor.elf differs from a fresh build" in r.stdout + r.stderr
+
+
+@needs_toolchain
+def test_the_readmes_make_commands_run_as_documented(tmp_path):
+    """Every command of firmware/controlmotor_c/README.md, in a copy of the folder."""
+    _same_compiler()
+    readme = (FW / "README.md").read_text()
+    lines = [line.split("#")[0].split() for block in re.findall(r"```sh\n(.*?)```", readme, re.DOTALL)
+             for line in block.splitlines() if line.strip()]
+    assert [w[:3] for w in lines] == [["make", "-C", "firmware/controlmotor_c"]] * 3
+    copy = tmp_path / "controlmotor_c"
+    shutil.copytree(FW, copy, ignore=shutil.ignore_patterns("build"))
+    for words in lines:
+        r = subprocess.run(["make", "-C", str(copy), *words[3:]], capture_output=True, text=True, timeout=300,
+                           check=False)
+        assert r.returncode == 0, (words, r.stdout + r.stderr)
+    for image in IMAGES:                                     # make rebuilt them: the same bytes
+        assert (copy / image).read_bytes() == (FW / image).read_bytes()
+    assert not (copy / "build").exists()                     # make clean
