@@ -67,7 +67,10 @@ def test_the_wheel_holds_mcusim_only_with_its_data(wheel):
     tops = {n.split("/")[0] for n in names}
     assert {t for t in tops if not t.endswith(".dist-info")} == {"mcusim"}
     for needed in ("mcusim/boards/nucleo-f746.toml", "mcusim/scenarios/step_response.toml",
-                   "mcusim/periph/stm32/tim.py", "mcusim/fw/controlmotor/app.py", "mcusim/cli.py"):
+                   "mcusim/periph/stm32/tim.py", "mcusim/fw/controlmotor/app.py", "mcusim/cli.py",
+                   "mcusim/fw/controlmotor_c/controlmotor.elf", "mcusim/fw/controlmotor_c/controlmotor.topics.toml",
+                   "mcusim/fw/controlmotor_c/controlmotor_thesis.elf",
+                   "mcusim/fw/controlmotor_c/controlmotor_thesis.topics.toml"):
         assert needed in names, needed
 
 
