@@ -33,6 +33,7 @@ from unicorn import arm_const as A
 from unicorn.unicorn_const import (
     UC_ARCH_ARM,
     UC_HOOK_BLOCK,
+    UC_HOOK_CODE,
     UC_HOOK_INTR,
     UC_HOOK_MEM_FETCH_UNMAPPED,
     UC_HOOK_MEM_PROT,
@@ -87,6 +88,8 @@ class CortexMCore:
         self._load(image)
         self._map_peripherals()
         uc.hook_add(UC_HOOK_BLOCK, self._on_block)
+        for addr in sorted(self._unmask):    # after an instruction that may unmask: take what is pending
+            uc.hook_add(UC_HOOK_CODE, self._on_unmask, begin=addr, end=addr)
         uc.hook_add(UC_HOOK_INTR, self._on_intr)
         uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED
                     | UC_HOOK_MEM_PROT, self._on_bad_access)
@@ -132,13 +135,20 @@ class CortexMCore:
                 raise ConfigError(f"{image.path}: a loadable segment at {seg.address:#010x} "
                                   f"({len(seg.data)} bytes) lies outside the board's memory ({names})")
             m.view[off:off + len(seg.data)] = seg.data
-        self._wfi = set()
-        for seg in image.segments:          # WFI instructions: where the core goes to sleep
-            if seg.executable:
-                d = seg.data
-                for i in range(0, len(d) - 1, 2):
-                    if d[i] == 0x30 and d[i + 1] == 0xBF:
-                        self._wfi.add(seg.address + i)
+        self._wfi, self._unmask = set(), set()
+        for seg in image.segments:          # WFI: where the core sleeps; CPSIE/MSR: may unmask
+            if not seg.executable:
+                continue
+            d = seg.data
+            for i in range(0, len(d) - 1, 2):
+                hw = d[i] | d[i + 1] << 8
+                if hw == 0xBF30:
+                    self._wfi.add(seg.address + i)
+                elif hw & 0xFFF8 == 0xB660:                        # CPSIE i/f
+                    self._unmask.add(seg.address + i + 2)
+                elif hw & 0xFFF0 == 0xF380 and i + 3 < len(d) and (d[i + 2] | d[i + 3] << 8) in (
+                        0x8810, 0x8811, 0x8812, 0x8813):           # MSR PRIMASK/BASEPRI(_MAX)/FAULTMASK
+                    self._unmask.add(seg.address + i + 4)
 
     def _map_peripherals(self):
         pages = set()
@@ -341,6 +351,11 @@ class CortexMCore:
             self._stop = ("fault", address if access == UC_MEM_FETCH_UNMAPPED else pc,
                           f"{8 * size}-bit {what} memory at {address:#010x}{extra}")
         return False
+
+    def _on_unmask(self, uc, address, size, _):
+        if self._in_emu and self._stop is None and not self._replay and self.exc.can_preempt():
+            self._stop = ("unmask",)
+            uc.emu_stop()
 
     def _on_intr(self, uc, intno, _):
         if self._stop is not None:
