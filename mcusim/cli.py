@@ -352,9 +352,12 @@ def cmd_run(args) -> int:
             except TimeError:
                 raise ConfigError(f"--sample {fmt_duration(args.sample)}: not a whole number of base ticks "
                                   f"(1/{sim.timebase.base_hz} s); try 1ms or 100us") from None
+        gdb = None
         if args.gdb is not None:
             from .elf.gdb import GdbServer
-            GdbServer(sim, args.gdb).wait_for_client()
+            gdb = GdbServer(sim, args.gdb)
+            sim._closers.append(gdb.finish)
+            gdb.wait_for_client()
         vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
         csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
                              keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)

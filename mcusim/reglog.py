@@ -17,6 +17,9 @@ value changed, ``{FIELD: [old, new]}``, new being what the register holds after 
 register without fields is one field named after the register; write-only fields, which read 0,
 show the value written: ``{"UG": [0, 1]}``).
 
+A compiled image (``--firmware app.elf``) adds ``fn``, the function (from the ELF's symbol
+table) whose instruction made the access: ``"fn": "pwm_tim1_set_duty"``.
+
 Only accesses through the bus are logged (the firmware, or a test calling ``mcu.read32`` ...):
 they reach :attr:`Peripheral.access_log`. The hardware side of a model (``set_bits`` /
 ``clear_bits``: a timer setting UIF, a port latching a pin) does not. Without a log attached,
@@ -209,9 +212,10 @@ class RegisterLog:
             mcu = member["mcu"]
             bases, singles = _addresses(mcu.bus)
             period = mcu.core_clock.period
+            caller = getattr(mcu.cpu, "caller", None)      # a compiled image's core: PC -> function
             for p in _bus_peripherals(mcu):
                 digits = 4 if getattr(p, "BUS_WIDTH", 4) == 1 else 8
-                info = (mname, period, bases.get(id(p)), singles, digits, {})
+                info = (mname, period, bases.get(id(p)), singles, digits, {}, caller)
                 self._info[id(p)] = info
                 if self._could is not None and not self._could(mname, p.name):
                     continue
@@ -252,7 +256,7 @@ class RegisterLog:
         return hook
 
     def _emit(self, now, info, kind, p, reg, value, old, after) -> None:
-        mname, period, base, singles, digits, _cache = info
+        mname, period, base, singles, digits, _cache, caller = info
         if base is not None:
             addr = base + reg.offset
         else:
@@ -263,6 +267,9 @@ class RegisterLog:
                "reg": f"{p.name}.{reg.name}", "op": kind, "value": f"0x{value:0{width}x}"}
         if kind == "write":
             rec["changed"] = _changed(reg, value, old, after)
+        fn = caller() if caller is not None else None
+        if fn is not None:
+            rec["fn"] = fn
         self._file.write(json.dumps(rec, separators=(",", ":")) + "\n")
         self.lines += 1
 

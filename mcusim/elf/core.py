@@ -106,6 +106,9 @@ class CortexMCore:
         self._replay = []
         self._acc_pc, self._acc = None, []
         self.debug = None           # a gdb server: breakpoints, watchpoints, halts
+        self._debug_after = None
+        self._replaying = False
+        self._resume_pc = None
         self.fault = None
         boot = boot_address if boot_address is not None else 0
         self.exc.reset(boot)
@@ -222,8 +225,15 @@ class CortexMCore:
         self._ev = None
         if self.state != "run":
             return
+        dbg = self.debug
+        if dbg is not None:
+            dbg.before_quantum()            # halted: serve gdb here, simulated time stands still
+            if self.state != "run" or self._ev is not None:
+                return
         t0 = self.kernel.now
         if self.exc.take_pending(t0):
+            if self.debug is not None:
+                self.debug.entered()
             return                          # entry scheduled the next run after its latency
         limit = self._limit(t0)
         n = min(MAX_QUANTUM, -(-(limit - t0) // self.step_ticks))
@@ -237,22 +247,21 @@ class CortexMCore:
         self.cpu_time = t = t0 + retired * self.step_ticks
         self.kernel.now = t0
         stop, self._stop = self._stop, None
+        debug_stop, self._debug_after = self._debug_after, None
         if stop is not None:
             kind = stop[0]
             if kind == "fault":
                 self._fault(stop[1], stop[2], t)
             elif kind == "wfi" and not self.exc.wakes():
                 self.state = "sleep"
-                return
             elif kind == "exc_return":
                 self.exc.exception_return(stop[1], t)
             elif kind == "svc":
                 self.exc.svc(t)
             elif kind == "debug":
-                self.debug.stopped(stop[1], t)
-                return
-        if self.debug is not None and self.debug.after_quantum(t):
-            return
+                debug_stop = stop[1]
+        if self.debug is not None:
+            self.debug.after_quantum(debug_stop)
         if self._ev is None and self.state == "run":
             self._schedule(t)
 
@@ -263,7 +272,7 @@ class CortexMCore:
         self._q_base, self._blk_addr, self._blk_n = 0, None, 0
         self._in_emu = True
         self._check = False
-        pc = uc.reg_read(A.UC_ARM_REG_PC)
+        pc = self._resume_pc = uc.reg_read(A.UC_ARM_REG_PC)
         try:
             uc.emu_start(pc | 1, 0, count=n)
             err = None
@@ -271,6 +280,8 @@ class CortexMCore:
             err = exc
         finally:
             self._in_emu = False
+            if self.debug is not None:
+                self.debug._skip_bp = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         stop = self._stop
         if err is not None and (stop is None or stop[0] != "fault"):
@@ -284,16 +295,19 @@ class CortexMCore:
         if stop is None and retired < n and (pc - 2) in self._wfi:
             self._stop = ("wfi",)
         if stop is not None and stop[0] == "replay":
+            # the instruction was abandoned after its access: finish it alone, answering its
+            # peripheral accesses from the record (no second side effect)
             self._stop = None
-            self._replay = stop[1]
-            self._in_emu = True
+            self._replay = list(stop[1])
+            self._in_emu = self._replaying = True
+            self._q_t0 = t0 + retired * self.step_ticks
             self._q_base, self._blk_addr, self._blk_n = 0, None, 0
             try:
                 uc.emu_start(pc | 1, 0, count=1)
             except UcError as exc:
                 self._stop = ("fault", pc, self._uc_error_text(exc, pc))
             finally:
-                self._in_emu = False
+                self._in_emu = self._replaying = False
                 self._replay = []
             retired += 1
         return retired
@@ -336,8 +350,6 @@ class CortexMCore:
             n = self._blk_n_cache[(address, size)] = self._index(address, address + size)
         self._q_base += self._blk_n
         self._blk_addr, self._blk_n = address, n
-        if self.debug is not None and self.debug.breakpoints:
-            self.debug.check_block(address, size)
 
     _ACCESS: ClassVar[dict] = {UC_MEM_READ_UNMAPPED: "read of unmapped", UC_MEM_WRITE_UNMAPPED: "write to unmapped",
                UC_MEM_FETCH_UNMAPPED: "instruction fetch from unmapped", UC_MEM_WRITE_PROT: "write to read-only"}
@@ -378,9 +390,10 @@ class CortexMCore:
 
     def _mmio(self, uc, address, size, value):
         """One peripheral access by the firmware; value None for a read. Returns the read value."""
-        if self._replay:
-            rec = self._replay.pop(0)
-            return rec[2]
+        if self._replaying:
+            if self._replay:
+                return self._replay.pop(0)[2]
+            # an access the abandoned instruction had not made yet: a real one
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         if pc != self._acc_pc:
             self._acc_pc, self._acc = pc, []
@@ -403,10 +416,14 @@ class CortexMCore:
             uc.emu_stop()
             return 0
         self._acc.append((address, size, result))
-        if self.debug is not None and self.debug.watch_hit(address, size, value is not None):
-            self._stop = ("replay", list(self._acc))
-            self._debug_after = ("watch", address)
-            uc.emu_stop()
+        if self.debug is not None and self.debug.watchpoints and not self._replaying:
+            hit = self.debug.watch_hit(address, size, value is not None)
+            if hit is not None:
+                self._stop = ("replay", list(self._acc))
+                self._debug_after = hit
+                uc.emu_stop()
+                return result
+        if self._replaying:
             return result
         nxt = k.next_time()
         if (nxt is not None and nxt < self._q_limit) or (self._check and self.exc.can_preempt()):
