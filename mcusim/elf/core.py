@@ -390,10 +390,8 @@ class CortexMCore:
 
     def _mmio(self, uc, address, size, value):
         """One peripheral access by the firmware; value None for a read. Returns the read value."""
-        if self._replaying:
-            if self._replay:
-                return self._replay.pop(0)[2]
-            # an access the abandoned instruction had not made yet: a real one
+        if self._replaying and self._replay:   # the replayed instruction's recorded accesses
+            return self._replay.pop(0)[2]
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         if pc != self._acc_pc:
             self._acc_pc, self._acc = pc, []

@@ -139,6 +139,10 @@ class GdbServer:
     def _check_interrupt(self) -> None:
         if self.conn is None or self.halted:
             return
+        if self._interrupted:
+            self._interrupted = False
+            self._halt(f"T{SIGINT:02x}")
+            return
         r, _, _ = select.select([self.conn], [], [], 0)
         if r:
             data = self.conn.recv(4096)
@@ -195,7 +199,8 @@ class GdbServer:
             data = self.conn.recv(65536)
             if not data:
                 return None
-            if b"\x03" in data:
+            if b"\x03" in data:          # Ctrl-C right behind a continue: halt once it runs
+                self._interrupted = True
                 data = data.replace(b"\x03", b"")
             self._buf += data.replace(b"+", b"") if b"$" not in data else data
 
@@ -227,6 +232,7 @@ class GdbServer:
             self._send(reply.encode("latin-1"))
 
     _reply_pending = False
+    _interrupted = False
     _skip_bp = None
 
     def _handle(self, p: str):

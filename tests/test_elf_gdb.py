@@ -1,0 +1,185 @@
+"""The gdb server of a compiled image: the remote serial protocol spoken by a client in Python (no
+gdb needed), and a gdb-multiarch batch session when gdb-multiarch is installed."""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from rsp_client import Rsp
+
+import mcusim
+from mcusim.elf.gdb import DebuggerKill, GdbServer
+
+BIN = Path(__file__).parent / "elf_bin"
+TICKS = str(BIN / "ticks.elf")
+
+
+def session(script, duration="50ms"):
+    """Run ``script(client, symbols)`` against a simulation of ticks.elf served on a free port."""
+    sim = mcusim.load("nucleo-f746", firmware=TICKS)
+    srv = GdbServer(sim, 0)
+    out, errors = {"kernel": sim.kernel}, []
+
+    def client():
+        c = Rsp(srv.port)
+        try:
+            script(c, sim.firmware.symbols, out)
+        except BaseException as exc:   # noqa: BLE001 (reported by the test below)
+            errors.append(exc)
+        finally:
+            c.close()
+    t = threading.Thread(target=client)
+    t.start()
+    srv.wait_for_client(quiet=True)
+    try:
+        sim.run(seconds=duration)
+    finally:
+        sim.close()
+        srv.finish()
+        t.join(30)
+    if errors:
+        raise errors[0]
+    return sim, out
+
+
+def le32(hexword):
+    return int.from_bytes(bytes.fromhex(hexword), "little")
+
+
+def test_halted_at_reset_with_sp_and_pc_from_the_vector_table():
+    def script(c, syms, out):
+        out["stop"] = c.ask("?")
+        regs = c.ask("g")
+        out["sp"], out["pc"] = le32(regs[13 * 8:14 * 8]), le32(regs[15 * 8:16 * 8])
+        c.ask("D")
+    sim, out = session(script)
+    assert out["stop"] == "T05"
+    assert out["sp"] == 0x20050000 and out["pc"] == sim.firmware.symbols["Reset_Handler"]
+
+
+def test_simulated_time_stands_still_while_halted_and_a_breakpoint_stops_at_its_address():
+    times = []
+
+    def script(c, syms, out):
+        times.append(out["kernel"].now)
+        assert c.ask(f"Z0,{syms['SysTick_Handler']:x},2") == "OK"
+        out["stop"] = c.ask("c")
+        out["pc"] = le32(c.ask("pf"))
+        out["xpsr"] = le32(c.ask("p10"))
+        times.append(out["kernel"].now)
+        c.ask(f"z0,{syms['SysTick_Handler']:x},2")
+        c.ask("D")
+    sim, out = session(script)
+    assert times[0] == 0                               # halted at reset: nothing ran yet
+    assert out["stop"].startswith("T05swbreak")
+    assert out["pc"] == sim.firmware.symbols["SysTick_Handler"]
+    assert out["xpsr"] & 0x1FF == 15                   # in the SysTick exception
+    # the first SysTick wrap is 216000 cycles after the enabling write: time reached it, no further
+    assert 216000 < times[1] < 216000 + 1000
+
+
+def test_step_executes_one_instruction():
+    def script(c, syms, out):
+        pc0 = le32(c.ask("pf"))
+        out["stop"] = c.ask("vCont;s:1")
+        out["step"] = le32(c.ask("pf")) - pc0
+        c.ask("D")
+    _, out = session(script)
+    assert out["stop"] == "T05" and out["step"] in (2, 4)
+
+
+def test_memory_reads_reach_ram_and_peripherals_through_the_models():
+    def script(c, syms, out):
+        c.ask(f"Z0,{syms['TIM2_IRQHandler']:x},2")
+        c.ask("c")
+        out["sr_before"] = le32(c.ask("m40000010,4"))          # TIM2.SR: UIF set
+        assert c.ask("M40000010,4:00000000") == "OK"            # cleared through the model
+        out["sr_after"] = le32(c.ask("m40000010,4"))
+        out["ticks"] = le32(c.ask(f"m{syms['ticks']:x},4"))
+        assert c.ask(f"M{syms['ticks']:x},4:e8030000") == "OK"
+        c.ask(f"z0,{syms['TIM2_IRQHandler']:x},2")
+        out["unmapped"] = c.ask("m60000000,4")
+        c.ask("D")
+    sim, out = session(script, duration="20ms")
+    assert out["sr_before"] & 1 and not out["sr_after"] & 1
+    assert out["unmapped"].startswith("E")
+    assert sim.firmware.topic("/ticks") > 1000                  # the write to RAM stuck
+
+
+def test_watchpoints_on_ram_and_on_a_peripheral_register():
+    def script(c, syms, out):
+        c.ask(f"Z2,{syms['ticks']:x},4")
+        out["ram"] = c.ask("c")
+        out["ram_pc"] = le32(c.ask("pf"))
+        c.ask(f"z2,{syms['ticks']:x},4")
+        c.ask("Z2,40000010,4")                                  # TIM2.SR written by its handler
+        out["periph"] = c.ask("c")
+        out["periph_pc"] = le32(c.ask("pf"))
+        c.ask("z2,40000010,4")
+        c.ask("D")
+    sim, out = session(script)
+    syms, image = sim.firmware.symbols, sim.firmware.image
+    assert out["ram"] == f"T05watch:{syms['ticks']:x};"
+    assert out["periph"] == "T05watch:40000010;"
+    assert image.function(out["periph_pc"]) == "TIM2_IRQHandler"   # stopped after the store
+
+
+def test_ctrl_c_halts_a_running_target_and_kill_ends_the_run():
+    def script(c, syms, out):
+        c.send("c")
+        c.interrupt()
+        out["stop"] = c.recv()
+        assert out["stop"] == "T02"
+        c.send("vKill;1")
+        out["kill"] = c.recv()
+    with pytest.raises(DebuggerKill):
+        session(script, duration="10s")
+
+
+def test_port_in_use_is_one_clear_error():
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
+    try:
+        sim = mcusim.load("nucleo-f746", firmware=TICKS)
+        with pytest.raises(mcusim.errors.ConfigError, match="cannot listen"):
+            GdbServer(sim, busy.getsockname()[1])
+    finally:
+        busy.close()
+
+
+@pytest.mark.skipif(shutil.which("gdb-multiarch") is None, reason="gdb-multiarch is not installed")
+def test_gdb_multiarch_batch_session(tmp_path):
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    run = subprocess.Popen([sys.executable, "-m", "mcusim", "run", "nucleo-f746", "--firmware", TICKS,
+                            "--gdb", str(port), "--duration", "50ms", "-q"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "waiting for gdb" in run.stderr.readline()    # it listens (a probe would be taken for gdb)
+        gdb = subprocess.run(
+            ["gdb-multiarch", "-batch", "-nx", "-ex", "set pagination off", "-ex", f"file {TICKS}",
+             "-ex", f"target extended-remote :{port}", "-ex", "info registers pc",
+             "-ex", "break SysTick_Handler", "-ex", "continue", "-ex", "print ticks",
+             "-ex", "stepi", "-ex", "info registers xpsr", "-ex", "delete",
+             "-ex", "watch tim2_count", "-ex", "continue", "-ex", "delete", "-ex", "detach"],
+            capture_output=True, text=True, timeout=120)
+        out = gdb.stdout
+        assert "<Reset_Handler>" in out
+        assert "Breakpoint 1, SysTick_Handler" in out
+        assert "$1 = 0" in out                            # the first tick, before its increment
+        assert "xpsr           0x100000f" in out          # IPSR 15: SysTick
+        import re
+        old, new = map(int, re.search(r"Old value = (\d+)\nNew value = (\d+)", out).groups())
+        assert new == old + 1
+    finally:
+        stdout, stderr = run.communicate(timeout=120)
+    assert run.returncode == 0, stderr
+    assert "/ticks = 49" in stdout                        # detached, the run went on to its end
