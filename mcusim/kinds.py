@@ -124,6 +124,10 @@ def _P(**params):
 PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "stm32-rcc", "mcusim.periph.stm32.rcc:Rcc", {}, "STM32F7 reset and clock control",
          needs=("base",)),
+    Kind("peripheral", "stm32-flash", "mcusim.periph.stm32.sysctl:Flash", {},
+         "STM32F7 flash interface: ACR (wait states, ART), as start-up code writes it", needs=("base",)),
+    Kind("peripheral", "stm32-pwr", "mcusim.periph.stm32.sysctl:Pwr", {},
+         "STM32F7 power controller: CR1/CSR1 (regulator scale, over-drive and their ready flags)", needs=("base",)),
     Kind("peripheral", "stm32-tim", "mcusim.periph.stm32.tim:Tim", _P(
         irqs=_Table(("brk", "update", "trg_com", "cc"), _IRQ, doc="NVIC lines of the timer's events"),
         counter_bits=Param(16, choices=(16, 32), doc="counter width"),

@@ -109,12 +109,13 @@ class CoreScb(Peripheral):
         # SHPR1: MemManage(4) BusFault(5) UsageFault(6); SHPR2: SVCall(11); SHPR3: PendSV(14) SysTick(15)
         shift = 8 - self.nvic.prio_bits
         keep = (0xFF << shift) & 0xFF
-        for reg, first in (("SHPR1", 4), ("SHPR2", 8), ("SHPR3", 12)):
-            v = self.value[reg] & (keep * 0x01010101)
+        # bytes of reserved priorities read 0: SHPR1's 7th, SHPR2's 8-10, SHPR3's 13
+        for reg, first, used in (("SHPR1", 4, 0x00FFFFFF), ("SHPR2", 8, 0xFF000000), ("SHPR3", 12, 0xFFFF00FF)):
+            v = self.value[reg] & (keep * 0x01010101) & used
             self.value[reg] = v
             for b in range(4):
                 exc = first + b
-                if exc in (4, 5, 6, 11, 14, 15):
+                if exc in (4, 5, 6, 11, 12, 14, 15):
                     self.nvic.priority[exc - 16] = ((v >> (8 * b)) & 0xFF) >> shift
         self.nvic._changed()
 

@@ -36,6 +36,17 @@ def _enables(name, offset, bits):
 class Rcc(Peripheral):
     SIZE = 0x400
     REGISTERS = (
+        # CR and PLLCFGR as SystemClock_Config leaves them on the NUCLEO-F746ZG: HSE bypass (8 MHz from
+        # the ST-LINK), PLL M = 8, N = 432, P = 2, Q = 9 -> 216 MHz. A ready flag follows its enable at
+        # once (oscillator and PLL start-up times are not modelled).
+        Register("CR", 0x00, reset=0x0307_0083, on_read="_read_cr", fields=(
+            Field("HSION", 0), Field("HSIRDY", 1, access="r"), Field("HSITRIM", 3, 5), Field("HSICAL", 8, 8, access="r"),
+            Field("HSEON", 16), Field("HSERDY", 17, access="r"), Field("HSEBYP", 18), Field("CSSON", 19, modelled=False),
+            Field("PLLON", 24), Field("PLLRDY", 25, access="r"), Field("PLLI2SON", 26, modelled=False),
+            Field("PLLI2SRDY", 27, access="r"), Field("PLLSAION", 28, modelled=False), Field("PLLSAIRDY", 29, access="r"))),
+        Register("PLLCFGR", 0x04, reset=0x0940_6C08, on_write="_write_pllcfgr", fields=(
+            Field("PLLM", 0, 6), Field("PLLN", 6, 9), Field("PLLP", 16, 2), Field("PLLSRC", 22),
+            Field("PLLQ", 24, 4), Field("PLLR", 28, 3))),
         Register("CFGR", 0x08, reset=(0b100 << 13) | (0b101 << 10) | (0b10 << 2) | 0b10,
                  on_write="_write_cfgr", fields=(
                      Field("SW", 0, 2, modelled=False), Field("SWS", 2, 2, access="r"),
@@ -89,6 +100,21 @@ class Rcc(Peripheral):
             if old is not None:
                 for user in self.mcu.clock_users.get(name, ()):
                     user.set_kernel_clock(clock)
+
+    def _read_cr(self, stored):
+        for on, rdy in ((0, 1), (16, 17), (24, 25)):          # HSI, HSE, PLL: ready as soon as on
+            stored = stored | (1 << rdy) if stored >> on & 1 else stored & ~(1 << rdy)
+        return stored
+
+    def _write_pllcfgr(self, old, new):
+        """The PLL may be programmed, but only to the board's SYSCLK (the time base is fixed)."""
+        m, n, p = new & 0x3F, (new >> 6) & 0x1FF, 2 * (((new >> 16) & 3) + 1)
+        src = 8_000_000 if new >> 22 & 1 else 16_000_000        # HSE (ST-LINK MCO, 8 MHz) or HSI
+        hz = Fraction(src, m) * n / p if m else Fraction(0)
+        if hz != self.sysclk_hz:
+            raise UnsupportedConfiguration(self.name, "PLLCFGR", None, new,
+                                           f"gives a {hz / 1e6:g} MHz PLL output; the board runs at "
+                                           f"{self.sysclk_hz / 1e6:g} MHz ([clocks] sysclk)")
 
     def _write_cfgr(self, old, new):
         self._publish()
