@@ -33,6 +33,7 @@ EXAMPLES_RUN = """examples:
   mcusim run elementall --set mcm3.present=false --set battery.count=2
   mcusim run nucleo-f746 --scenario step_response --plot step.png --csv step.csv
   mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
+  mcusim run nucleo-f746 --firmware firmware/controlmotor_c/controlmotor.elf --set /motor1/set_pos=1.57
 
 durations take a unit (2s, 500ms, 20us); a run may last at most 600s of simulated time unless
 --max-duration raises the limit. --set topics and inputs (/motor1/set_pos=1.57, velocity=10)

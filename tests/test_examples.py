@@ -16,7 +16,7 @@ import mcusim
 from mcusim.cli import _parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = [ROOT / "README.md", ROOT / "docs" / "scenarios.md", ROOT / "docs" / "boards.md"]
+DOCS = [ROOT / "README.md", ROOT / "docs" / "scenarios.md", ROOT / "docs" / "boards.md", ROOT / "docs" / "firmware.md"]
 SHORT = {"default": "20ms", "exit1": "300ms"}      # long enough for ciaa-edu to find no module
 
 
@@ -60,7 +60,7 @@ def test_the_examples_are_found():
 
 @pytest.mark.parametrize("where, cmd, expected", COMMANDS, ids=[w for w, _, _ in COMMANDS])
 def test_example_command_runs_as_documented(tmp_path, monkeypatch, capsys, where, cmd, expected):
-    for folder in ("boards", "scenarios"):
+    for folder in ("boards", "scenarios", "firmware"):
         (tmp_path / folder).symlink_to(ROOT / folder)
     monkeypatch.chdir(tmp_path)
     argv = shlex.split(cmd)[1:]
@@ -79,13 +79,15 @@ def test_example_command_runs_as_documented(tmp_path, monkeypatch, capsys, where
             assert (tmp_path / argv[argv.index(opt) + 1]).is_file(), opt
 
 
-def test_readme_python_examples_run():
-    text = (ROOT / "README.md").read_text()
+@pytest.mark.parametrize("doc, least", [("README.md", 2), ("docs/firmware.md", 1)])
+def test_python_examples_run(doc, least, monkeypatch):
+    monkeypatch.chdir(ROOT)                                  # paths in the examples are the repository's
+    text = (ROOT / doc).read_text()
     blocks = _blocks(text, "python")
-    assert len(blocks) >= 2
+    assert len(blocks) >= least
     for block in blocks:
         ns: dict = {}
-        exec(compile(block, "README.md", "exec"), ns)        # noqa: S102 (the README's own examples)
+        exec(compile(block, doc, "exec"), ns)                # noqa: S102 (the docs' own examples)
         for value in ns.values():
             if isinstance(value, mcusim.Simulation):
                 value.close()

@@ -84,6 +84,8 @@ class ElfFirmware:
         self.symbols = self.image.symbols
         self.topics = read_topic_map(path, self.image)
         self._held = []
+        if "/motor1/set_pos" in self.topics:      # the summary's set point per motor, as the ports give it
+            self.set_point = lambda n: self.topic(f"/motor{n}/set_pos")
         self.started = "main" not in self.symbols
         if not self.started:
             main = self.symbols["main"]
