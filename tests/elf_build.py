@@ -13,10 +13,11 @@ from pathlib import Path
 
 SRC = Path(__file__).parent / "elf_src"
 BIN = Path(__file__).parent / "elf_bin"
-IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles")
-CFLAGS = ["-mcpu=cortex-m7", "-mthumb", "-mfpu=fpv5-sp-d16", "-mfloat-abi=hard", "-O2", "-g",
-          "-ffreestanding", "-nostartfiles", "-nostdlib", "-Wl,--gc-sections", "-Wl,--build-id=none",
-          "-ffile-prefix-map=" + str(SRC) + "=.", "-T", "link.ld"]
+IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "lpc_ticks")
+COMMON = ["-mthumb", "-O2", "-g", "-ffreestanding", "-nostartfiles", "-nostdlib", "-Wl,--gc-sections",
+          "-Wl,--build-id=none", "-ffile-prefix-map=" + str(SRC) + "=."]
+STM32F746 = ["-mcpu=cortex-m7", "-mfpu=fpv5-sp-d16", "-mfloat-abi=hard", "-T", "link.ld"]
+LPC4337 = ["-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-T", "link_lpc.ld"]
 
 
 def gcc():
@@ -25,7 +26,8 @@ def gcc():
 
 def build(name: str, out_dir: Path) -> Path:
     out = Path(out_dir) / f"{name}.elf"
-    subprocess.run([gcc(), *CFLAGS, "startup.c", f"{name}.c", "-o", str(out.resolve()), "-lgcc"],
+    chip = LPC4337 if name.startswith("lpc_") else STM32F746
+    subprocess.run([gcc(), *COMMON, *chip, "startup.c", f"{name}.c", "-o", str(out.resolve()), "-lgcc"],
                    cwd=SRC, check=True, capture_output=True)
     topics = SRC / f"{name}.topics.toml"
     if topics.exists():

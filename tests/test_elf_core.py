@@ -9,11 +9,14 @@ when arm-none-eabi-gcc is installed.
 from __future__ import annotations
 
 import itertools
+import json
 import shutil
 import struct
 
 import pytest
 from elf_build import BIN, IMAGES, build, gcc
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mcusim
 from mcusim.cli import main
@@ -244,3 +247,58 @@ def test_a_fault_in_the_cli_names_the_simulated_time(capsys):
 def test_committed_images_match_their_sources(name, tmp_path):
     assert gcc() is not None
     assert build(name, tmp_path).read_bytes() == (BIN / f"{name}.elf").read_bytes()
+
+
+def test_an_access_a_register_model_refuses_is_a_hardfault_with_its_reason():
+    sim = load("faults", overrides={"/which": 5})
+    with pytest.raises(CoreFault, match=r"no register of TIM2 at offset 0x3f0 at PC 0x[0-9a-f]+ \(main"):
+        sim.run(seconds="1ms")
+
+
+# --- the other board, determinism, the register log --------------------------------------------------
+def test_ciaa_edu_runs_an_image_linked_for_its_flash_through_the_boot_shadow():
+    sim = load("lpc_ticks", board="ciaa-edu")
+    sim.run(seconds="10ms")
+    assert sim.mcu.read32(0x0) == 0x10008000                        # SP, seen at the shadow address
+    assert word(sim, "ticks") == 9 and word(sim, "base") == 1000    # SysTick at 1 kHz; .data copied
+    assert sim.mcu.read32(0xE000ED00) == 0x410FC241                 # a Cortex-M4
+
+
+def test_a_system_profile_refuses_an_elf():
+    with pytest.raises(ConfigError, match="system runs its boards' own firmware"):
+        mcusim.load("elementall", firmware=elf("ticks"))
+
+
+def test_the_register_log_names_the_function_of_each_access_and_is_deterministic(tmp_path):
+    from mcusim.reglog import load_logged
+    logs = []
+    for k in range(2):
+        path = tmp_path / f"regs{k}.jsonl"
+        sim, _ = load_logged("nucleo-f746", str(path), firmware=elf("ticks"))
+        sim.run(seconds="3ms")
+        sim.close()
+        logs.append(path.read_text())
+    assert logs[0] == logs[1]
+    lines = [json.loads(x) for x in logs[0].splitlines()]
+    fns = {(x["reg"], x["op"], x.get("fn")) for x in lines}
+    assert ("TIM2.PSC", "write", "main") in fns
+    assert ("TIM2.SR", "write", "TIM2_IRQHandler") in fns
+
+
+# --- priorities, for all inputs ----------------------------------------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(prios=st.lists(st.integers(0, 15), min_size=4, max_size=4),
+       pend=st.sets(st.integers(0, 3), min_size=1), prigroup=st.integers(0, 7))
+def test_interrupts_pending_together_run_in_priority_order(prios, pend, prigroup):
+    """Armv7-M B1.5.4: of the pending exceptions the one with the lowest group priority, then the
+    lowest subpriority, then the lowest number, is taken; one runs to its end before the next
+    (none of them can preempt another of the same or lower urgency; tail-chained)."""
+    sim = load("order")
+    sim.run(seconds="10us")                                   # main enabled the IRQs and sleeps
+    sim.mcu.write32(0xE000ED0C, (0x05FA << 16) | (prigroup << 8))
+    sim.mcu.write32(0xE000E400, sum(p << (4 + 8 * i) for i, p in enumerate(prios)))
+    sim.mcu.write32(0xE000E200, sum(1 << n for n in pend))  # pended at one instant
+    sim.run(seconds="20us")
+    trace = [word(sim, "trace", i) for i in range(word(sim, "n_trace"))]
+    assert trace == sorted(pend, key=lambda n: (prios[n] << 4, n))
+    sim.close()

@@ -15,5 +15,6 @@ int main(void) {
     if (which == 2) bad_insn();
     if (which == 3) flash_write();
     if (which == 4) svc_masked();
+    if (which == 5) sink = *(volatile uint32_t *)0x400003F0;   /* TIM2: no register there */
     for (;;) __asm volatile("wfi");
 }
