@@ -165,6 +165,17 @@ def test_an_access_that_pends_an_interrupt_ends_the_quantum_after_that_instructi
     assert word(sim, "stacked_pc") == sim.firmware.symbols["pend_irq3_next"]
 
 
+def test_an_access_that_schedules_an_earlier_event_ends_the_quantum():
+    """sched.c: CYCCNT is read 2 instructions before the TIM2 CEN write; the update comes 200
+    cycles (100 ticks of the 108 MHz timer clock, +1 to reach its edge) after that write; the poll
+    loop reads SR every 4 instructions, and CYCCNT is read 4 instructions after the read that sees
+    UIF. Had the quantum not ended at the write, the poll would have run past the update unseen."""
+    sim = load("sched")
+    sim.run(seconds="1ms")
+    seen = word(sim, "t_seen") - word(sim, "t_start")
+    assert 2 + 200 + 4 <= seen <= 2 + 201 + 4 + 4
+
+
 def test_stacking_with_and_without_the_fp_frame():
     sim = load("fpframe")
     sim.run(seconds="1ms")
