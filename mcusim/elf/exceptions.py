@@ -22,6 +22,8 @@ import struct
 
 from unicorn import arm_const as A
 
+from .regs import RegBlock
+
 THREAD = 1 << 16
 SVCALL, PENDSV_EXC, SYSTICK_EXC = 11, 14, 15
 _VALID_RETURNS = {0xFFFFFFF1, 0xFFFFFFF9, 0xFFFFFFFD, 0xFFFFFFE1, 0xFFFFFFE9, 0xFFFFFFED}
@@ -29,11 +31,23 @@ _FIXED = {2: -2, 3: -1}                 # NMI, HardFault
 _FRAME_REGS = (A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R3, A.UC_ARM_REG_R12,
                A.UC_ARM_REG_LR)
 _S = tuple(getattr(A, f"UC_ARM_REG_S{i}") for i in range(16))
+_MASKS = (A.UC_ARM_REG_BASEPRI, A.UC_ARM_REG_PRIMASK, A.UC_ARM_REG_FAULTMASK)
+_RETURN = (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP)
+_ENTRY = (A.UC_ARM_REG_XPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP, A.UC_ARM_REG_PC) + _FRAME_REGS
 
 
 class ExceptionModel:
     def __init__(self, core):
         self.core, self.uc, self.nvic = core, core.uc, core.nvic
+        uc = self.uc
+        self._masks = RegBlock(uc, _MASKS)
+        self._entry_in = RegBlock(uc, _ENTRY)
+        self._entry_out = RegBlock(uc, (A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV,
+                                        A.UC_ARM_REG_LR))
+        self._return_in = RegBlock(uc, _RETURN)
+        frame = (*_FRAME_REGS, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV, A.UC_ARM_REG_CONTROL)
+        self._return_out = {psp: RegBlock(uc, (*frame, A.UC_ARM_REG_PSP if psp else A.UC_ARM_REG_MSP,
+                                               A.UC_ARM_REG_PC)) for psp in (False, True)}
         self.vtor = 0
         self.prigroup = 0
         self.stkalign = True
@@ -77,13 +91,13 @@ class ExceptionModel:
         p = THREAD
         for e in self.active:
             p = min(p, self.priority(e))
-        reg = self.uc.reg_read
-        base = reg(A.UC_ARM_REG_BASEPRI) & 0xFF
+        base, pm, fm = self._masks.read()
+        base &= 0xFF
         if base:
             p = min(p, base >> (self.prigroup + 1))
-        if primask and reg(A.UC_ARM_REG_PRIMASK) & 1:
+        if primask and pm & 1:
             p = min(p, 0)
-        if reg(A.UC_ARM_REG_FAULTMASK) & 1:
+        if fm & 1:
             p = min(p, -1)
         return p
 
@@ -117,24 +131,21 @@ class ExceptionModel:
 
     def enter(self, exc: int, t: int, tail_return: int | None = None) -> None:
         uc, core = self.uc, self.core
-        reg = uc.reg_read
-        xpsr = reg(A.UC_ARM_REG_XPSR)
-        control = reg(A.UC_ARM_REG_CONTROL)
+        xpsr, control, msp, psp, ret, *regs = self._entry_in.read()
         if tail_return is None:
             thread = not self.active and (xpsr & 0x1FF) == 0
             use_psp = thread and bool(control & 2)
             fp = bool(control & 4)
-            sp = reg(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP)
+            sp = psp if use_psp else msp
             size = 0x68 if fp else 0x20
             new = (sp - size) & 0xFFFFFFFF
             pad = bool(new & 4) and self.stkalign
             new &= ~4 if self.stkalign else ~0
-            ret = reg(A.UC_ARM_REG_PC)
-            saved = [reg(r) for r in _FRAME_REGS] + [ret, (xpsr & ~(1 << 9)) | (pad << 9) | (1 << 24)]
+            saved = [*regs, ret, (xpsr & ~(1 << 9)) | (pad << 9) | (1 << 24)]
             frame = struct.pack("<8I", *(v & 0xFFFFFFFF for v in saved))
             if fp:
-                frame += struct.pack("<16I", *(reg(s) & 0xFFFFFFFF for s in _S))
-                frame += struct.pack("<II", reg(A.UC_ARM_REG_FPSCR) & 0xFFFFFFFF, 0)
+                frame += struct.pack("<16I", *(v & 0xFFFFFFFF for v in uc.reg_read_batch(_S)))
+                frame += struct.pack("<II", uc.reg_read(A.UC_ARM_REG_FPSCR) & 0xFFFFFFFF, 0)
             if core._region(new, len(frame))[0] is None or core._region(new, len(frame))[0].kind != "ram":
                 self._fault(f"stacking for exception {exc} at SP {new:#010x} outside RAM (stack overflow?)", t)
             uc.mem_write(new, frame)
@@ -142,10 +153,8 @@ class ExceptionModel:
             uc.reg_write(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP, new)
         else:
             exc_return = tail_return
-        uc.reg_write(A.UC_ARM_REG_CONTROL, control & ~6)
-        uc.reg_write(A.UC_ARM_REG_XPSR, (xpsr & 0xF8000000) | (1 << 24) | exc)
-        uc.reg_write(A.UC_ARM_REG_APSR_NZCV, xpsr & 0xF8000000)
-        uc.reg_write(A.UC_ARM_REG_LR, exc_return)
+        self._entry_out.write((control & ~6, (xpsr & 0xF8000000) | (1 << 24) | exc, xpsr & 0xF8000000,
+                               exc_return))
         m, off = core._region(self.vtor + 4 * exc, 4)
         vector = struct.unpack_from("<I", m.view, off)[0] if m is not None else 0
         if not vector & 1 or core._region(vector & ~1, 2)[0] is None:
@@ -169,8 +178,8 @@ class ExceptionModel:
     # --- return --------------------------------------------------------------------------------
     def exception_return(self, exc_return: int, t: int) -> None:
         uc, core = self.uc, self.core
-        reg = uc.reg_read
-        exc = reg(A.UC_ARM_REG_IPSR) & 0x1FF
+        exc, control, msp, psp = self._return_in.read()
+        exc &= 0x1FF
         if exc_return not in _VALID_RETURNS:
             self._fault(f"exception return with invalid EXC_RETURN {exc_return:#010x}", t)
         if not self.active or self.active[-1] != exc:
@@ -189,7 +198,7 @@ class ExceptionModel:
             return
         use_psp = bool(exc_return & 4)
         fp = not exc_return & 0x10
-        sp = reg(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP)
+        sp = psp if use_psp else msp
         size = 0x68 if fp else 0x20
         m, _ = core._region(sp, size)
         if m is None:
@@ -200,19 +209,12 @@ class ExceptionModel:
         ipsr = xpsr & 0x1FF
         if thread != (ipsr == 0):
             self._fault(f"EXC_RETURN {exc_return:#010x} and the stacked IPSR {ipsr} disagree (INVPC)", t)
-        for r, v in zip(_FRAME_REGS, words[:6]):
-            uc.reg_write(r, v)
-        control = reg(A.UC_ARM_REG_CONTROL)
-        uc.reg_write(A.UC_ARM_REG_XPSR, xpsr & ~(1 << 9))
-        uc.reg_write(A.UC_ARM_REG_APSR_NZCV, xpsr & 0xF8000000)
         if fp:
-            for s, v in zip(_S, struct.unpack_from("<16I", raw, 0x20)):
-                uc.reg_write(s, v)
-            uc.reg_write(A.UC_ARM_REG_FPSCR, struct.unpack_from("<I", raw, 0x60)[0])
+            uc.reg_write_batch([*zip(_S, struct.unpack_from("<16I", raw, 0x20)),
+                                (A.UC_ARM_REG_FPSCR, struct.unpack_from("<I", raw, 0x60)[0])])
         new_sp = (sp + size + (4 if xpsr & (1 << 9) else 0)) & 0xFFFFFFFF
         control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
-        uc.reg_write(A.UC_ARM_REG_CONTROL, control)
-        uc.reg_write(A.UC_ARM_REG_PSP if use_psp else A.UC_ARM_REG_MSP, new_sp)
-        uc.reg_write(A.UC_ARM_REG_PC, words[6] & ~1)
+        self._return_out[use_psp].write((*words[:6], xpsr & ~(1 << 9), xpsr & 0xF8000000, control, new_sp,
+                                         words[6] & ~1))
         if thread and self.sleeponexit and not self.wakes():
             core.state = "sleep"
