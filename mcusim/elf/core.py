@@ -58,6 +58,15 @@ MAX_QUANTUM = 1 << 20          # instructions per emu_start at most (the kernel 
 INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 
 
+_CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
+    3: "prefetch abort (a branch to an address with no code)",
+    4: "data abort",
+    17: "no coprocessor (a floating-point instruction with the FPU disabled)",
+    18: "invalid state (a branch to an address with bit 0 clear: ARM state does not exist on Cortex-M)",
+    19: "invalid PC on exception return",
+}
+
+
 class CoreFault(McusimError):
     """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ..."""
 
@@ -292,8 +301,8 @@ class CortexMCore:
         if stop is not None and stop[0] == "fault":
             return self._q_base + self._index(self._blk_addr, stop[1])
         retired = self._q_base + self._index(self._blk_addr, pc) if self._blk_addr is not None else 0
-        if stop is None and retired < n and (pc - 2) in self._wfi:
-            self._stop = ("wfi",)
+        if stop is None and retired < n and ((pc - 2) in self._wfi or self._halfword(pc - 2) == 0xBF30):
+            self._stop = ("wfi",)          # (the second test: a WFI in code the image copied to RAM)
         if stop is not None and stop[0] == "replay":
             # the instruction was abandoned after its access: finish it alone, answering its
             # peripheral accesses from the record (no second side effect)
@@ -311,6 +320,12 @@ class CortexMCore:
                 self._replay = []
             retired += 1
         return retired
+
+    def _halfword(self, address):
+        try:
+            return int.from_bytes(self.uc.mem_read(address, 2), "little")
+        except UcError:
+            return None
 
     def _uc_error_text(self, err, pc):
         text = str(err)
@@ -380,9 +395,9 @@ class CortexMCore:
         elif intno == INTNO_UDEF:
             self._stop = ("fault", pc, "undefined instruction")
         elif intno == 7:                         # EXCP_BKPT
-            self._stop = ("debug", "bkpt") if self.debug is not None else ("fault", pc, "BKPT with no debugger")
+            self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, "BKPT with no debugger attached")
         else:
-            self._stop = ("fault", pc, f"CPU exception {intno} (an invalid state or a return to a bad address)")
+            self._stop = ("fault", pc, _CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
         uc.emu_stop()
 
     def _access_time(self, pc):
