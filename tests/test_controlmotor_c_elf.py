@@ -87,3 +87,23 @@ def test_a_hunting_motor_hunts_in_the_same_band():
         assert max(abs(a + 3.14) for a in band) <= 8 * COUNT
     assert abs(overshoot(c["motor2"], -3.14) - overshoot(py["motor2"], -3.14)) \
         <= 0.10 * abs(overshoot(py["motor2"], -3.14))
+
+
+def test_the_thesis_image_reproduces_the_thesis_variant_bugs_as_the_port_does():
+    """controlmotor_thesis.elf against firmware.variant=thesis: bridge B's PWM at 25 kHz (ARR 4319
+    on the 108 MHz TIM2) and motor 2 running away under the position formula's missing 2π on the
+    revolutions, both as the Python port has them."""
+    thesis = ELF.replace("controlmotor.elf", "controlmotor_thesis.elf")
+    sets = {"/motor1/set_pos": 1.57, "/motor2/set_pos": -3.14}
+    runs = []
+    for firmware, extra in ((True, {"firmware.variant": "thesis"}), (thesis, {})):
+        sim = mcusim.load("nucleo-f746", firmware=firmware, overrides={**sets, **extra})
+        sim.run(seconds=1.5)
+        base = sim.timebase.base_hz
+        assert Fraction(base, sim.mcu.periph["TIM2"].pwm_waveform(1)[1]) == 25_000
+        runs.append({n: m.output_angle for n, m in sim.motors.items()})
+        sim.close()
+    py, c = runs
+    assert abs(py["motor2"]) > 20                        # ran away, several turns past -π
+    for motor in ("motor1", "motor2"):
+        assert abs(c[motor] - py[motor]) <= 2 * COUNT
