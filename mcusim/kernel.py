@@ -76,6 +76,13 @@ class Kernel:
             return head[0] > time or (head[0] == time and head[1] > prio)
         return True
 
+    def peek(self):
+        """(time, priority) of the next event the run loop would pop, or None."""
+        q = self._queue
+        while q and q[0][3].cancelled:
+            heapq.heappop(q)
+        return (q[0][0], q[0][1]) if q else None
+
     def next_time(self):
         q = self._queue
         while q and q[0][3].cancelled:

@@ -26,6 +26,8 @@ takes it when the architecture says so. How it runs:
 
 from __future__ import annotations
 
+import bisect
+import ctypes
 from typing import ClassVar
 
 from unicorn import Uc, UcError
@@ -128,7 +130,6 @@ class CortexMCore:
         uc = self.uc
         for m in self.memories:
             perms = (UC_PROT_READ | UC_PROT_EXEC) if m.kind == "flash" else UC_PROT_ALL
-            import ctypes
             for base in (m.base, *m.aliases):
                 uc.mem_map_ptr(base, m.size, perms, ctypes.addressof(m.buffer))
 
@@ -217,14 +218,11 @@ class CortexMCore:
     def _limit(self, t0):
         """The first tick no instruction of a quantum starting at t0 may reach."""
         k = self.kernel
-        q = k._queue
-        while q and q[0][3].cancelled:
-            import heapq
-            heapq.heappop(q)
-        end = getattr(k, "end", None)
+        end = k.end
         limit = end + 1 if end is not None else t0 + MAX_QUANTUM * self.step_ticks
-        if q:
-            t, prio = q[0][0], q[0][1]
+        head = k.peek()
+        if head is not None:
+            t, prio = head
             if t == t0 and prio > PRIO_CPU:
                 t = t0 + 1                 # an observer at this tick sees the instruction at t0
             limit = min(limit, t)
@@ -356,7 +354,6 @@ class CortexMCore:
                 offs.append(i)
                 i += _thumb_len(data[i] | data[i + 1] << 8)
             self._blocks[addr] = offs = tuple(offs)
-        import bisect
         return bisect.bisect_left(offs, pc - addr)
 
     def _on_block(self, uc, address, size, _):
