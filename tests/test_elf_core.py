@@ -176,6 +176,17 @@ def test_an_access_that_schedules_an_earlier_event_ends_the_quantum():
     assert 2 + 200 + 4 <= seen <= 2 + 201 + 4 + 4
 
 
+def test_basepri_and_primask_mask_by_priority_and_unmasking_takes_the_interrupt_at_once():
+    sim = load("masks")
+    sim.run(seconds="1ms")
+    syms = sim.firmware.symbols
+    trace = [word(sim, "trace", i) for i in range(word(sim, "n_trace"))]
+    # BASEPRI 0x40: IRQ1 (0x20) is taken, IRQ0 (0x80) waits; PRIMASK: IRQ1 waits too
+    assert trace == [0x11, 0x01, 0x10, 0x02, 0x11]
+    assert word(sim, "ret_irq0") == syms["after_basepri"]     # right after MSR BASEPRI
+    assert word(sim, "ret_irq1") == syms["after_cpsie"]       # right after CPSIE
+
+
 def test_stacking_with_and_without_the_fp_frame():
     sim = load("fpframe")
     sim.run(seconds="1ms")
