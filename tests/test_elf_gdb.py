@@ -57,10 +57,12 @@ def test_halted_at_reset_with_sp_and_pc_from_the_vector_table():
         out["stop"] = c.ask("?")
         regs = c.ask("g")
         out["sp"], out["pc"] = le32(regs[13 * 8:14 * 8]), le32(regs[15 * 8:16 * 8])
+        out["msp"], out["control"] = le32(c.ask("p11")), le32(c.ask("p16"))    # regnums 17, 22
         c.ask("D")
     sim, out = session(script)
     assert out["stop"] == "T05"
     assert out["sp"] == 0x20050000 and out["pc"] == sim.firmware.symbols["Reset_Handler"]
+    assert out["msp"] == out["sp"] and out["control"] == 0        # thread mode on MSP after reset
 
 
 def test_simulated_time_stands_still_while_halted_and_a_breakpoint_stops_at_its_address():

@@ -6,7 +6,8 @@ served from inside the core's kernel event, so simulated time advances only whil
 runs. What it offers:
 
 * registers ``r0``-``r12``, ``sp``, ``lr``, ``pc``, ``xpsr`` (an ``org.gnu.gdb.arm.m-profile``
-  target description), read and written;
+  target description) and ``msp``, ``psp``, ``primask``, ``basepri``, ``faultmask``, ``control``,
+  read and written;
 * memory: flash and RAM directly; a peripheral address goes through the register models, with
   their side effects, as on a real probe (reading a clear-on-read flag clears it);
 * breakpoints (``Z0``/``Z1``) and watchpoints on RAM and peripherals (``Z2`` write, ``Z3`` read,
@@ -28,12 +29,21 @@ from ..errors import BusFault, ConfigError, McusimError
 from ..kernel import PRIO_OBSERVE
 
 SIGINT, SIGTRAP = 2, 5
-REGS = tuple(f"r{i}" for i in range(13)) + ("sp", "lr", "pc", "xpsr")
+CORE_REGS = tuple(f"r{i}" for i in range(13)) + ("sp", "lr", "pc", "xpsr")
+SYSTEM_REGS = ("msp", "psp", "primask", "basepri", "faultmask", "control")
+REGS = CORE_REGS + SYSTEM_REGS
+
+
+def _reg_xml(names, first):
+    return "".join(f'<reg name="{r}" bitsize="32" regnum="{first + i}"'
+                   + (' type="data_ptr"' if r in ("sp", "msp", "psp") else ' type="code_ptr"' if r == "pc" else "")
+                   + "/>" for i, r in enumerate(names))
+
+
 TARGET_XML = ('<?xml version="1.0"?><!DOCTYPE target SYSTEM "gdb-target.dtd"><target version="1.0">'
-              "<architecture>arm</architecture><feature name=\"org.gnu.gdb.arm.m-profile\">"
-              + "".join(f'<reg name="{r}" bitsize="32" regnum="{i}"'
-                        + (' type="data_ptr"' if r == "sp" else ' type="code_ptr"' if r == "pc" else "") + "/>"
-                        for i, r in enumerate(REGS))
+              "<architecture>arm</architecture>"
+              '<feature name="org.gnu.gdb.arm.m-profile">' + _reg_xml(CORE_REGS, 0) + "</feature>"
+              '<feature name="org.mcusim.cortex-m.system">' + _reg_xml(SYSTEM_REGS, len(CORE_REGS))
               + "</feature></target>")
 
 
