@@ -108,7 +108,7 @@ class CortexMCore:
         self._blocks: dict[int, tuple] = {}
         self._blk_n_cache: dict[tuple, int] = {}
         # run state
-        self.state = "run"          # run | sleep | halt (a debugger holds it)
+        self.state = "run"          # run | sleep (WFI) | fault
         self.cpu_time = 0           # tick of the next instruction
         self._ev = None
         self._in_emu = False
@@ -119,7 +119,6 @@ class CortexMCore:
         self.debug = None           # a gdb server: breakpoints, watchpoints, halts
         self._debug_after = None
         self._replaying = False
-        self._resume_pc = None
         self.fault = None
         boot = boot_address if boot_address is not None else 0
         self.exc.reset(boot)
@@ -279,7 +278,7 @@ class CortexMCore:
         self._q_base, self._blk_addr, self._blk_n = 0, None, 0
         self._in_emu = True
         self._check = False
-        pc = self._resume_pc = uc.reg_read(A.UC_ARM_REG_PC)
+        pc = uc.reg_read(A.UC_ARM_REG_PC)
         try:
             uc.emu_start(pc | 1, 0, count=n)
             err = None
