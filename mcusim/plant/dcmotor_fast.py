@@ -134,9 +134,9 @@ class PeriodicDrive:
     def _on_passive(self):
         self._ev_passive = None
         tr = self._traj
-        # the edge-by-edge engine starts a segment here, so its peak-current tracking samples this
-        # tick (with a complex eigenvalue pair it sees only segment ends): sample it too
-        self._peak = max(self._peak, abs(self._now_state()[0]))
+        # the edge-by-edge engine starts a segment here and samples |i| at its start: an interior
+        # point of this segment, never above the maximum the segment's own tracking finds (its
+        # boundaries and the current's stationary points), so nothing is sampled here
         for g in self._passive:
             g[5].on_guard(g[6])
         if self._traj is tr and self._ev_passive is None:
