@@ -380,6 +380,7 @@ class DcMotor(PeriodicDrive):
             tr = self._traj
             if tr.kind == "chunk":
                 self.chunk_ticks += n
+                self._chunk_lived(tr, n)
             self._peak = max(self._peak, self._segment_peak(tr, n))
             self._x0 = self._at(tr, n)
             self._prev = (self._t0, tr)

@@ -20,7 +20,7 @@ from . import pwl
 
 # whole-period chunks are screened CHUNK_MIN periods ahead at first, doubling up to CHUNK_MAX while
 # nothing fires
-CHUNK_MIN, CHUNK_MAX = 16, 512
+CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
 
 
 class PeriodicDrive:
@@ -86,6 +86,15 @@ class PeriodicDrive:
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
         return True
+
+    def _chunk_lived(self, tr, n: int) -> None:
+        """The chunk ``tr`` ends after ``n`` ticks. One that an input change cut short after m
+        periods moves the next horizon towards 2·(m + 1), halving it at most per cut (one early
+        cut is no pattern): screening periods that inputs changing at a steady rate (the rover's
+        1 ms battery and body steps) never let run is wasted work."""
+        P = tr.plan.P
+        if n < tr.periods * P:
+            self._chunk_n = max(min(2 * (n // P + 1), CHUNK_MAX), self._chunk_n // 2, CHUNK_LO)
 
     def _find_passive(self):
         """Schedule the next firing of a passive provider's guards (an encoder threshold: its
