@@ -73,20 +73,23 @@ class PeriodPlan:
             self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
 
     def first_flag(self, x0, n: int, extra_guards):
-        """(k, X): the first period k (0..n) in which a guard may fire (n if none fires in n
-        periods), and the states X[0..k] at the period starts (rows (i, ω, θ, 1))."""
+        """(k, X, ib): the first period k (0..n) in which a guard may fire (n if none fires in n
+        periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), and a bound of |i|
+        over those k periods (at least as large as the largest |i| in them)."""
         X = self.table.augmented_states(x0, n)   # (n+1, 4)
         flag = n
+        ib = 0.0
         npieces = len(self.pieces)
         for p, pc in enumerate(self.pieces):
             b = self.bounds[p]
             if b is None:
-                return 0, X[:1]
+                return 0, X[:1], ib
             W, w, tau, absA, absu = b
             S = X[:flag] @ self.Q[p].T if p else X[:flag]
             E = X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
             ab = np.abs(S[:, :2])
             xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
+            ib = max(ib, float(xb[:, 0].max()))
             D = xb @ absA.T + absu                 # bound of |di/dt|, |dω/dt|
             guards = pc[4] + extra_guards
             if not guards:
@@ -101,9 +104,9 @@ class PeriodPlan:
             if anybad.any():
                 flag = int(np.argmax(anybad))
                 if flag == 0:
-                    return 0, X[:1]
+                    return 0, X[:1], ib
                 X = X[:flag + 1]
-        return flag, X
+        return flag, X, ib
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
@@ -116,8 +119,9 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, build_piece, X):
+    def __init__(self, plan: PeriodPlan, x0, build_piece, X, ibound=math.inf):
         self.plan, self.x0 = plan, tuple(x0)
+        self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
         self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1

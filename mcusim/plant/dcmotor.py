@@ -341,7 +341,8 @@ class DcMotor(PeriodicDrive):
 
     def _segment_peak(self, tr, n: int):
         if tr.kind == "chunk":
-            return tr.peak(n)
+            # the screening's bound of |i| over the chunk: nothing in it can raise the peak so far
+            return 0.0 if self._peak >= tr.ibound else tr.peak(n)
         t = n * self._inv_hz
         x = tr.eval(t)
         p = abs(x[0])

@@ -73,7 +73,7 @@ class PeriodicDrive:
             if prov is not self._driver and not getattr(prov, "passive_guards", False):
                 extra.extend(prov.plant_guards())
         n = self._chunk_n
-        k, X = plan.first_flag(x0, n, tuple(extra))
+        k, X, ib = plan.first_flag(x0, n, tuple(extra))
         now = self.kernel.now
         if k == 0:
             self._chunk_n = CHUNK_MIN
@@ -81,7 +81,7 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X)
+        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X, ib)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
