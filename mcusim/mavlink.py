@@ -95,6 +95,10 @@ class MavlinkClient:
         """Every valid message received so far (of ``type``)."""
         return [m for _, m in self.log if type is None or m.get_type() == type]
 
+    def flush(self) -> None:
+        """Forget the messages received so far: the next wait sees only newer ones."""
+        self._read = len(self.log)
+
     def recv_match(self, type: str | None = None, condition=None, timeout="1s"):
         """The next message not returned before (of ``type``, with ``condition(msg)`` true),
         running the simulation up to ``timeout`` of simulated time for it."""

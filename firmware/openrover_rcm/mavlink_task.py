@@ -12,7 +12,8 @@ MAV_AUTOPILOT_GENERIC. Streams and their default intervals are in ``STREAMS`` (c
 MAV_CMD_SET_MESSAGE_INTERVAL, sent once by MAV_CMD_REQUEST_MESSAGE).
 
 Bytes that are not a valid frame (garbage, a bad CRC, a truncated frame, an unknown message id)
-are counted in ``rx_errors`` and skipped. Unlike ``mavlink_parse_char``, which drops every byte of
+are counted in ``rx_errors`` and skipped (a frame of an id outside the dialect counts as invalid:
+without its CRC_EXTRA its checksum cannot be verified). Unlike ``mavlink_parse_char``, which drops every byte of
 a frame whose CRC fails, the task rescans such a frame from its second byte: a start byte in
 garbage followed by a large length byte would otherwise swallow the valid frames behind it.
 
@@ -64,6 +65,8 @@ class MavlinkLink:
         self.due = {mid: 0 for mid in STREAMS}
         self.once: list[int] = []               # REQUEST_MESSAGE: sent at the next pass
         self.statustext: list[tuple[int, str]] = []
+        # poll() on the serial device and on the event queue: one wake-up for both
+        self.wake = serial.rxavail
         self._text_id = 0
         self.param_queue: list[int] = []        # indices still to send (PARAM_REQUEST_LIST)
         self.gains = None                       # (KP, KI, KD) as read from the first module
@@ -106,7 +109,7 @@ class MavlinkLink:
             if self.param_queue or self.once or self.statustext:
                 nxt = now + 1
             if not self.serial.recv:
-                await rtos.wait_signal(self.serial.rxavail, timeout=max(1, nxt - now))
+                await rtos.wait_signal(self.wake, timeout=max(1, nxt - now))
             data = self.serial.read()
             if data:
                 await cpu.cycles(self.p["cycles_mavlink_rx_byte"] * len(data))
@@ -121,6 +124,8 @@ class MavlinkLink:
         i = 0
         while i < len(queue):
             m = queue[i]
+            if m.get_type().startswith("UNKNOWN_"):   # an id outside the dialect: no CRC_EXTRA to check it
+                m = self.ml.MAVLink_bad_data(m.get_msgbuf(), "unknown message id")
             if m.get_type() != "BAD_DATA":
                 self.rx_frames += 1
                 out.append(m)
@@ -232,6 +237,7 @@ class MavlinkLink:
     def event(self, severity: int, text: str) -> None:
         """Queue a STATUSTEXT (sent at the task's next pass)."""
         self.statustext.append((severity, text))
+        self.wake.fire()
 
     # --- failsafes -------------------------------------------------------------------------------------
     def check_gcs(self, now: int) -> None:
