@@ -148,6 +148,7 @@ INPUTS = {
 
 class RoverControl:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    MAVLINK_UART = "USART3"      # the UART of the MAVLink task (mcusim run --mavlink connects it)
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
     SUMMARY_TOP = ("odometry",)
 
