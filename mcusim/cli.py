@@ -405,15 +405,14 @@ def cmd_run(args) -> int:
 def _attach_mavlink(sim, spec: str) -> None:
     """Connect the firmware's MAVLink UART (its ``MAVLINK_UART``) to the host link ``spec``."""
     from .hostudp import describe, open_link
-    fw = sim.firmware
-    uart = getattr(fw, "MAVLINK_UART", None)
-    if uart is None:
-        raise ConfigError(f"--mavlink: {sim.board_name} runs no firmware with a MAVLink link "
-                          "(the rover controller has one: elementall, ciaa-edu)")
-    member = next((n for n, m in sim.members.items() if m.get("firmware") is fw), None)
+    from .mavlink import mavlink_port
+    try:
+        uart, member = mavlink_port(sim)
+    except ConfigError as exc:
+        raise ConfigError(f"--mavlink: {exc}") from None
     endpoint = open_link(spec)
     sim._closers.append(endpoint.close)
-    sim.connect_serial(uart, endpoint, member=member if len(sim.members) > 1 else None)
+    sim.connect_serial(uart, endpoint, member=member)
     print(f"MAVLink: {describe(endpoint)}", flush=True)
 
 

@@ -38,6 +38,18 @@ def _dialect():
     return common
 
 
+def mavlink_port(sim) -> tuple:
+    """``(uart, member)`` of the simulation's MAVLink firmware (its ``MAVLINK_UART``; ``member`` is
+    the system member running it, None for a single board); ConfigError when there is none."""
+    fw = sim.firmware
+    uart = getattr(fw, "MAVLINK_UART", None)
+    if uart is None:
+        raise ConfigError(f"{sim.board_name} runs no firmware with a MAVLink link (the rover controller "
+                          "has one: elementall, ciaa-edu)")
+    member = next((n for n, m in sim.members.items() if m.get("firmware") is fw), None)
+    return uart, (member if len(sim.members) > 1 else None)
+
+
 class _ParsingEndpoint(BufferEndpoint):
     def __init__(self, client):
         super().__init__()
