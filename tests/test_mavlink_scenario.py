@@ -91,3 +91,28 @@ def test_mavlink_scenario_on_a_board_without_mavlink_is_a_usage_error(tmp_path, 
                head='[scenario]\nduration = "10ms"\n')
     assert main(["run", "pro-mini", "--scenario", str(p)]) == 2
     assert "pro-mini runs no firmware with a MAVLink link" in capsys.readouterr().err
+
+
+def test_the_mcusim_mavlink_fixture_gives_a_ground_station_on_the_firmwares_port(mcusim_sim, mcusim_mavlink):
+    sim = mcusim_sim("ciaa-edu")
+    gcs = mcusim_mavlink(sim, heartbeat_hz=0)
+    hb = gcs.recv_match("HEARTBEAT", timeout="50ms")
+    assert (hb.type, hb.get_srcSystem()) == (10, 1) and gcs.endpoint.usart is sim.mcu.periph["USART3"]
+    sim.run(seconds="1.2s")
+    assert sim.firmware.link.gcs_tick is None            # heartbeat_hz=0: the GCS sent none
+
+
+def test_the_python_examples_of_docs_mavlink_run(mcusim_sim, mcusim_mavlink, capsys):
+    import re
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "docs" / "mavlink.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.DOTALL)
+    assert len(blocks) == 2
+    for block in blocks:
+        ns: dict = {}
+        exec(compile(block, "docs/mavlink.md", "exec"), ns)     # noqa: S102 (the doc's own examples)
+        for name, fn in ns.items():
+            if name.startswith("test_"):
+                fn(mcusim_sim, mcusim_mavlink)
+    out = capsys.readouterr().out
+    assert out.startswith("10 0 1\n") and "PARAM_VALUE {param_id : BATT_LOW_V" in out
