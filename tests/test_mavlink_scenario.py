@@ -116,3 +116,11 @@ def test_the_python_examples_of_docs_mavlink_run(mcusim_sim, mcusim_mavlink, cap
                 fn(mcusim_sim, mcusim_mavlink)
     out = capsys.readouterr().out
     assert out.startswith("10 0 1\n") and "PARAM_VALUE {param_id : BATT_LOW_V" in out
+
+
+def test_a_companion_heartbeat_from_system_1_component_191_counts_as_the_ground_station(mcusim_sim, mcusim_mavlink):
+    """mavros takes the vehicle's system id and component 191 (ONBOARD_COMPUTER) by default."""
+    sim = mcusim_sim("ciaa-edu")
+    mcusim_mavlink(sim, system=1, component=191, heartbeat_hz=10)
+    sim.run(seconds="0.25s")
+    assert sim.firmware.link.gcs_tick is not None

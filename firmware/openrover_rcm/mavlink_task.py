@@ -272,7 +272,8 @@ class MavlinkLink:
         await handler(m)
 
     async def on_heartbeat(self, m) -> None:
-        if m.get_srcSystem() != 1:            # a ground station or companion computer
+        # a ground station (QGC: 255.190) or a companion computer (mavros: 1.191), not ourselves
+        if (m.get_srcSystem(), m.get_srcComponent()) != (1, 1):
             self.gcs_tick = self.rc.rtos.tick_count
 
     async def on_command_long(self, m) -> None:
