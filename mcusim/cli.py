@@ -152,7 +152,8 @@ def _parser() -> argparse.ArgumentParser:
                    "peripherals or registers: TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
     r.add_argument("--mavlink", metavar="LINK", help="connect the firmware's MAVLink port to the host: pty "
-                   "(prints its path), udpout:HOST:PORT or udpin:HOST:PORT (default duration: --max-duration)")
+                   "(prints its path), udpout:HOST:PORT or udpin:HOST:PORT; the profile's demo command is not "
+                   "applied (default duration: --max-duration)")
     r.add_argument("--realtime", action="store_true", help="pace simulated time to the wall clock (sleep "
                    "when ahead; report the lag when the simulation is slower than real time)")
     t = sub.add_parser("trace", help="print the firmware's register accesses (run --register-log -)",
@@ -207,7 +208,7 @@ def _run_sets(args) -> dict:
     unless the user gives a topic or input of their own (which replace it), then the user's."""
     from .board import is_input_key, read_profile
     user = dict(args.sets)
-    if args.no_firmware:
+    if args.no_firmware or getattr(args, "mavlink", None):     # with a MAVLink link the host commands
         return user
     profile = read_profile(args.board)[0]
     demo = profile.get("run", {}).get("set", {})

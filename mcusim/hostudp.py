@@ -133,7 +133,8 @@ def parse_link(spec: str, what: str = "--mavlink"):
         return ("pty",)
     mode, _, rest = text.partition(":")
     host, _, port = rest.rpartition(":")
-    if mode in ("udpout", "udpin") and host and port.isdigit() and 0 < int(port) < 65536:
+    lowest = 0 if mode == "udpin" else 1          # udpin:HOST:0 listens on a free port (printed)
+    if mode in ("udpout", "udpin") and host and port.isdigit() and lowest <= int(port) < 65536:
         return (mode, host, int(port))
     raise ConfigError(f"{what} {spec!r}: expected pty, udpout:HOST:PORT or udpin:HOST:PORT "
                       "(udpout:127.0.0.1:14550 reaches QGroundControl)")

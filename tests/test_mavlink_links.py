@@ -149,3 +149,13 @@ def test_cli_pty_link_paced_in_real_time_gives_a_pymavlink_serial_client_the_hea
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_with_a_mavlink_link_the_profiles_demo_command_is_not_applied(tmp_path):
+    """elementall's [run.set] drives at 0.5 m/s; with --mavlink the ground station commands."""
+    out = tmp_path / "s.json"
+    assert main(["run", "elementall", "--mavlink", "udpin:127.0.0.1:0", "--duration", "0.3s", "-q",
+                 "--summary", str(out)]) == 0
+    import json
+    s = json.loads(out.read_text())
+    assert s["pose"]["x"] == 0.0 and s["firmware"]["watchdog_tripped"] is False
