@@ -159,6 +159,17 @@ def test_set_message_interval_and_request_message():
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == DENIED
 
 
+def test_a_module_driver_fault_is_an_error_statustext_and_a_critical_heartbeat():
+    sim, gcs = rover()
+    sim.run(seconds="0.3s")
+    sim.part("mcm2.ibt2").overtemperature("both")       # BTS7960 thermal shutdown: IS shows the fault
+    t = gcs.recv_match("STATUSTEXT", condition=lambda m: m.text.startswith("module"), timeout="0.25s")
+    assert (t.text, t.severity) == ("module 0x09: driver fault", 3)      # MAV_SEVERITY_ERROR
+    assert "module_0x09_fault" in sim.firmware.faults
+    hb = gcs.recv_match("HEARTBEAT", timeout="1s")
+    assert hb.system_status == MAV_STATE_CRITICAL
+
+
 def test_param_set_of_a_wheel_gain_reaches_the_kp_register_of_every_module_and_is_echoed():
     sim, gcs = rover()
     sim.run(seconds="0.25s")
