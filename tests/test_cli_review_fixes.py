@@ -89,7 +89,10 @@ def test_sigterm_leaves_partial_outputs_marked_and_exits_143(tmp_path):
                           "--vcd", str(tmp_path / "t.vcd")], stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     import time
     deadline = time.time() + 60
-    while not (tmp_path / "t.vcd.part").exists() and time.time() < deadline:
+    part = tmp_path / "t.vcd.part"
+    # the .part exists (empty) from the output check on; wait until the run has written to it (a
+    # loaded machine may still be building the simulation half a second later)
+    while not (part.exists() and part.stat().st_size > 0) and time.time() < deadline:
         time.sleep(0.1)
     time.sleep(0.5)
     p.send_signal(signal.SIGTERM)

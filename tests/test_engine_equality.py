@@ -28,7 +28,8 @@ def _agree(tmp_path, argv):
 
 @pytest.mark.parametrize("board,name,duration", [("nucleo-f746", "step_response", "0.3s"),
                                                  ("nucleo-f746", "thesis_master_slave", "0.3s"),
-                                                 ("pro-mini", "promini_velocity_load", "0.8s")])
+                                                 ("pro-mini", "promini_velocity_load", "0.8s"),
+                                                 ("elementall", "mavlink_drive", "0.45s")])
 def test_engines_agree_on_shipped_scenario(tmp_path, board, name, duration):
     _agree(tmp_path, [board, "--scenario", str(SCENARIOS / f"{name}.toml"), "--duration", duration])
 
