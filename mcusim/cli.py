@@ -34,6 +34,8 @@ EXAMPLES_RUN = """examples:
   mcusim run nucleo-f746 --scenario step_response --plot step.png --csv step.csv
   mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
   mcusim run nucleo-f746 --firmware firmware/controlmotor_c/controlmotor.elf --set /motor1/set_pos=1.57
+  mcusim run elementall --mavlink udpout:127.0.0.1:14550 --realtime --duration 60s
+  mcusim run elementall --mavlink pty --duration 2s
 
 durations take a unit (2s, 500ms, 20us); a run may last at most 600s of simulated time unless
 --max-duration raises the limit. --set topics and inputs (/motor1/set_pos=1.57, velocity=10)
@@ -172,6 +174,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--register-log-filter", metavar="NAMES", help="with --register-log: only these "
                    "peripherals or registers: TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
+    r.add_argument("--mavlink", metavar="LINK", help="connect the firmware's MAVLink port to the host: pty "
+                   "(prints its path), udpout:HOST:PORT or udpin:HOST:PORT; the profile's demo command is not "
+                   "applied (default duration: --max-duration)")
+    r.add_argument("--realtime", action="store_true", help="pace simulated time to the wall clock (sleep "
+                   "when ahead; report the lag when the simulation is slower than real time)")
     t = sub.add_parser("trace", help="print the firmware's register accesses (run --register-log -)",
                        epilog=EXAMPLES_TRACE, formatter_class=argparse.RawDescriptionHelpFormatter)
     _common_arguments(t, "1ms", "")
@@ -226,7 +233,8 @@ def _run_sets(args) -> dict:
     unless the user gives a topic or input of their own (which replace it), then the user's."""
     from .board import is_input_key, read_profile
     user = dict(args.sets)
-    if args.no_firmware or getattr(args, "firmware", None):   # the demo command is the profile firmware's
+    if args.no_firmware or getattr(args, "firmware", None) or getattr(args, "mavlink", None):
+        # the demo command is the profile firmware's; with a MAVLink link the host commands
         return user
     profile = read_profile(args.board)[0]
     demo = profile.get("run", {}).get("set", {})
@@ -334,8 +342,12 @@ def cmd_run(args) -> int:
             raise ConfigError(f"{scenario.path}:{scenario.duration_line()}: [scenario] duration "
                               f"{fmt_duration(scenario.duration)} is longer than the limit of "
                               f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
+    link = getattr(args, "mavlink", None)
+    if link is not None:
+        from .hostudp import parse_link
+        parse_link(link)
     duration = args.duration if args.duration is not None else (
-        scenario.duration if scenario is not None else args.default_duration)
+        scenario.duration if scenario is not None else args.max_duration if link else args.default_duration)
     if duration > args.max_duration:
         raise ConfigError(f"the run's default duration {fmt_duration(duration)} is longer than the limit of "
                           f"{fmt_duration(args.max_duration)} given by --max-duration; give a --duration")
@@ -362,8 +374,15 @@ def cmd_run(args) -> int:
         vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
         csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
                              keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)
+        pace = None
+        if link is not None:
+            _attach_mavlink(sim, link)
         try:
-            run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
+            if getattr(args, "realtime", False):
+                from .realtime import run_realtime
+                pace = run_realtime(sim, duration)
+            else:
+                run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
         except McusimError as exc:      # a fault found during the run: say when
             exc.sim_time = sim.time_s
             raise
@@ -392,6 +411,8 @@ def cmd_run(args) -> int:
     report = sys.stderr if args.register_log == "-" else sys.stdout    # keep stdout for the log
     with contextlib.redirect_stdout(report):
         _print_summary(s)
+        if pace is not None:
+            print(pace.line())
         if scenario is not None:
             for line in scenario.format_results():
                 print(line)
@@ -412,6 +433,20 @@ def cmd_run(args) -> int:
     for why in failed:
         print(f"mcusim: {why}", file=sys.stderr)
     return 1 if failed else 0
+
+
+def _attach_mavlink(sim, spec: str) -> None:
+    """Connect the firmware's MAVLink UART (its ``MAVLINK_UART``) to the host link ``spec``."""
+    from .hostudp import describe, open_link
+    from .mavlink import mavlink_port
+    try:
+        uart, member = mavlink_port(sim)
+    except ConfigError as exc:
+        raise ConfigError(f"--mavlink: {exc}") from None
+    endpoint = open_link(spec)
+    sim._closers.append(endpoint.close)
+    sim.connect_serial(uart, endpoint, member=member)
+    print(f"MAVLink: {describe(endpoint)}", flush=True)
 
 
 def cmd_trace(args) -> int:

@@ -7,6 +7,8 @@ Active once mcusim is installed (entry point ``pytest11: mcusim``). It provides
   it made is closed, and one that never ran is discarded (its firmware tasks dropped);
 * the option ``--mcusim-vcd DIR``: each simulation made by the fixture writes a VCD into DIR,
   named after the test's node id;
+* the fixture ``mcusim_mavlink``: ``gcs = mcusim_mavlink(sim)`` gives a test a pymavlink ground
+  station on the firmware's MAVLink UART, in simulated time (:class:`mcusim.mavlink.MavlinkClient`);
 * the helpers of :mod:`mcusim.testing`, re-exported: ``wait_until``, ``wait_for_pin``,
   ``run_for``, ``SimTimeout``.
 
@@ -25,7 +27,7 @@ import pytest
 
 from mcusim.testing import SimTimeout, run_for, wait_for_pin, wait_until
 
-__all__ = ["SimTimeout", "mcusim_sim", "run_for", "vcd_filename", "wait_for_pin", "wait_until"]
+__all__ = ["SimTimeout", "mcusim_mavlink", "mcusim_sim", "run_for", "vcd_filename", "wait_for_pin", "wait_until"]
 
 _MAX_STEM = 180
 
@@ -97,6 +99,23 @@ def mcusim_sim(request):
     with contextlib.ExitStack() as stack:   # every simulation is finished even if one fails
         for sim in made:
             stack.callback(_finish, sim)
+
+
+@pytest.fixture
+def mcusim_mavlink():
+    """A factory of ground stations: ``mcusim_mavlink(sim, **kw)`` is a
+    :class:`mcusim.mavlink.MavlinkClient` on the MAVLink UART of ``sim``'s firmware (``kw``:
+    ``system``, ``component``, ``heartbeat_hz``). ``gcs.mav`` is pymavlink's ``MAVLink`` object
+    (``gcs.mav.command_long_send(...)``), ``gcs.recv_match(type, condition, timeout)`` runs the
+    simulation until a matching message arrives."""
+
+    def factory(sim, **kw):
+        from mcusim.mavlink import MavlinkClient, mavlink_port
+
+        uart, member = mavlink_port(sim)
+        return MavlinkClient(sim, uart, member=member, **kw)
+
+    return factory
 
 
 def _finish(sim) -> None:

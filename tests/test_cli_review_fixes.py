@@ -90,7 +90,8 @@ def test_sigterm_leaves_partial_outputs_marked_and_exits_143(tmp_path):
     import time
     deadline = time.time() + 60
     part = tmp_path / "t.vcd.part"
-    # an empty .part is removed, not kept (outputs.py): wait until the run has written into it
+    # the .part exists (empty) from the output check on; wait until the run has written to it (a
+    # loaded machine may still be building the simulation half a second later)
     while not (part.exists() and part.stat().st_size > 0) and time.time() < deadline:
         time.sleep(0.1)
     time.sleep(0.5)

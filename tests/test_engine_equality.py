@@ -28,7 +28,8 @@ def _agree(tmp_path, argv):
 
 @pytest.mark.parametrize("board,name,duration", [("nucleo-f746", "step_response", "0.3s"),
                                                  ("nucleo-f746", "thesis_master_slave", "0.3s"),
-                                                 ("pro-mini", "promini_velocity_load", "0.8s")])
+                                                 ("pro-mini", "promini_velocity_load", "0.8s"),
+                                                 ("elementall", "mavlink_drive", "0.45s")])
 def test_engines_agree_on_shipped_scenario(tmp_path, board, name, duration):
     _agree(tmp_path, [board, "--scenario", str(SCENARIOS / f"{name}.toml"), "--duration", duration])
 
@@ -115,3 +116,55 @@ def test_engines_agree_on_generated_promini_runs(tmp_path_factory, v, load, i_cl
     _agree(tmp, ["pro-mini", "--duration", f"{ms}ms", "--set", f"velocity={v!r}",
                  "--set", f"motor.load_torque={load!r}", "--set", f"motor.J={2e-5 * j_scale!r}",
                  "--set", f"ibt2.I_CLH={i_cl!r}", "--set", f"ibt2.I_CLL={0.7 * i_cl!r}"])
+
+
+EDGES_PER_OUTPUT_RAD = 2048 * 50 / (2 * 3.141592653589793)   # pro-mini: AMT10 on the motor, 1:50
+
+
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rate=st.sampled_from([60_000, 95_000, 105_000, 115_000, 160_000]), sign=st.sampled_from([1, -1]),
+       over_ms=st.integers(3, 12), back=st.booleans())
+def test_engines_agree_on_hand_turns_near_and_above_the_isr_bound_edge_rate(tmp_path_factory, rate, sign,
+                                                                           over_ms, back):
+    """A hand turns the pro-mini's shaft at edge rates around the PJRC Encoder's ISR-bound limit
+    (about 105 k edges/s: 4 cycles of response + 148 of ISR at 16 MHz), then optionally back:
+    above the limit a pending INT flag absorbs edges, and the counts lost must be the same edges in
+    both engines (the register log holds every PIND read of every ISR)."""
+    angle = sign * rate / EDGES_PER_OUTPUT_RAD * over_ms / 1000
+    sc = tmp_path_factory.mktemp("turn") / "turn.toml"
+    body = (f'[scenario]\nboard = "pro-mini"\nduration = "{2 * over_ms + 10}ms"\n\n'
+            f'[[at]]\ntime = "2ms"\nturn = {{ motor = "motor", angle = {angle!r}, over = "{over_ms}ms" }}\n')
+    if back:
+        body += (f'\n[[at]]\ntime = "{over_ms + 4}ms"\n'
+                 f'turn = {{ motor = "motor", angle = {-angle / 3!r}, over = "{over_ms}ms" }}\n')
+    sc.write_text(body)
+    _agree(sc.parent, ["pro-mini", "--scenario", str(sc)])
+
+
+FAULTS = {
+    "estop": 'fault = { kind = "estop", estop = "estop" }',
+    "silent": 'fault = { kind = "i2c_silent", board = "mcm2" }',
+    "sag": 'fault = { kind = "battery_sag", battery = "battery", soc = 0.15, amps = 40 }',
+    "none": None,
+}
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(lin=st.floats(-0.6, 0.6), ang=st.floats(-0.5, 0.5), fault=st.sampled_from(sorted(FAULTS)),
+       t_fault=st.integers(150, 260), reverse=st.booleans())
+def test_engines_agree_on_generated_rover_runs(tmp_path_factory, lin, ang, fault, t_fault, reverse):
+    """The rover under generated commands: drive and turn, a reversal, and one of an E-stop press,
+    a motor module dropping off the I2C bus, or a battery sag (state of charge and an extra load),
+    while the wheels are moving (they start about 150 ms after the first command)."""
+    sc = tmp_path_factory.mktemp("rover") / "rover.toml"
+    body = (f'[scenario]\nboard = "elementall"\nduration = "300ms"\n\n'
+            f'[[at]]\ntime = "0s"\npublish = {{ "cmd_vel.linear" = {lin!r}, "cmd_vel.angular" = {ang!r} }}\n')
+    events = []
+    if FAULTS[fault]:
+        events.append((t_fault, FAULTS[fault]))
+    if reverse:
+        events.append((220, f'publish = {{ "cmd_vel.linear" = {-lin!r}, "cmd_vel.angular" = {-ang!r} }}'))
+    for t, line in sorted(events, key=lambda e: e[0]):
+        body += f'\n[[at]]\ntime = "{t}ms"\n{line}\n'
+    sc.write_text(body)
+    _agree(sc.parent, ["elementall", "--scenario", str(sc)])

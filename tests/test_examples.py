@@ -16,7 +16,8 @@ import mcusim
 from mcusim.cli import _parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = [ROOT / "README.md", ROOT / "docs" / "scenarios.md", ROOT / "docs" / "boards.md", ROOT / "docs" / "firmware.md"]
+DOCS = [ROOT / "README.md", ROOT / "docs" / "scenarios.md", ROOT / "docs" / "boards.md", ROOT / "docs" / "mavlink.md",
+        ROOT / "docs" / "firmware.md"]
 SHORT = {"default": "20ms", "exit1": "300ms"}      # long enough for ciaa-edu to find no module
 
 

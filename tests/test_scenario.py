@@ -243,13 +243,14 @@ def test_expectation_after_a_shortened_run_is_not_reached_and_fails(tmp_path):
 
 # --- the shipped examples (shorter runs) ------------------------------------------------------------
 def test_examples_are_shipped():
-    assert {"thesis_master_slave", "step_response", "promini_velocity_load"} <= set(scenario_names())
+    assert {"thesis_master_slave", "step_response", "promini_velocity_load", "mavlink_drive"} <= set(scenario_names())
 
 
 @pytest.mark.parametrize("name, duration", [
     ("step_response", "500ms"),
     ("thesis_master_slave", "1s"),
     ("promini_velocity_load", "1.1s"),
+    ("mavlink_drive", "1.2s"),
 ])
 def test_example_passes_its_expectations(name, duration):
     sc = load_scenario(EXAMPLES / f"{name}.toml")

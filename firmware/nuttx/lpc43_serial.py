@@ -10,12 +10,18 @@ USART only through its registers and is entered through its interrupt.
 Deviations: the divisor search (``lpc43_setbaud``) tries every MULVAL 1..15 and DIVADDVAL
 0..MULVAL-1 and keeps the divisor with the smallest rate error, which finds the same setting as
 LPCOpen's ``Chip_UART_SetBaudFDR`` for 115200 at 204 MHz (DL 83, DIVADDVAL 5, MULVAL 15: +0.0094 %);
-a full transmit buffer drops the rest of a write (the upper half would block the caller).
+a full transmit buffer drops the rest of a write (the upper half would block the caller; callers
+that must not lose bytes check ``txroom`` first, as a C task would poll for POLLOUT); a full
+receive buffer (``rxbufsize``, CONFIG_USARTn_RXBUFSIZE, 256 by default) drops the byte read from
+RBR and counts it in ``rx_dropped``. ``rxavail`` is fired when received bytes enter the buffer
+(the upper half's ``recvsem`` post that wakes a reader blocked in ``read``/``poll``).
 """
 
 from __future__ import annotations
 
 from collections import deque
+
+from mcusim.firmware import Signal
 
 UART_RBR_THR_DLL, UART_DLM_IER, UART_IIR_FCR, UART_LCR, UART_LSR = 0x00, 0x04, 0x08, 0x0C, 0x14
 UART_FDR, UART_TER = 0x28, 0x5C
@@ -46,11 +52,13 @@ def lpc43_setbaud(pclk: int, baud: int) -> tuple[int, int, int]:
 
 class Lpc43SerialDev:
     def __init__(self, mcu, base: int, irq: int, baud: int, pclk: int, txbufsize: int = 512,
-                 isr_cycles: int = UART_SERIAL_ISR_CYCLES):
+                 isr_cycles: int = UART_SERIAL_ISR_CYCLES, rxbufsize: int = 256):
         self.mcu, self.base, self.irq, self.baud, self.pclk = mcu, base, irq, baud, pclk
         self.xmit: deque[int] = deque()
         self.recv = bytearray()
-        self.txbufsize = txbufsize
+        self.txbufsize, self.rxbufsize = txbufsize, rxbufsize
+        self.rx_dropped = 0
+        self.rxavail = Signal()
         self.dropped = 0
         self.ier = 0
         self.isr_cycles = isr_cycles
@@ -96,13 +104,28 @@ class Lpc43SerialDev:
             intid = iir & IIR_INTID_MASK
             if intid in (IIR_RDA, IIR_CTI):
                 while self.getreg(UART_LSR) & LSR_RDR:
-                    self.recv.append(self.getreg(UART_RBR_THR_DLL) & 0xFF)
+                    byte = self.getreg(UART_RBR_THR_DLL) & 0xFF
+                    if len(self.recv) < self.rxbufsize:
+                        self.recv.append(byte)
+                    else:
+                        self.rx_dropped += 1
+                self.rxavail.fire()
             elif intid == IIR_THRE:
                 self._fill_fifo()
                 if not self.xmit:
                     return
             else:                               # line status: reading LSR clears it
                 self.getreg(UART_LSR)
+
+    @property
+    def txroom(self) -> int:
+        """Free bytes in the transmit buffer (what a write can queue without dropping)."""
+        return self.txbufsize - len(self.xmit)
+
+    def read(self) -> bytes:
+        """The upper half's non-blocking read(): every byte in the receive buffer."""
+        data, self.recv = bytes(self.recv), bytearray()
+        return data
 
     def write(self, data: bytes) -> int:
         """The upper half's write(): queue the bytes; start the transmitter if it is idle."""

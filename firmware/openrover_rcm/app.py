@@ -22,14 +22,18 @@ Tasks (NuttX tasks on a 1 kHz system tick; priorities as numbers, higher = more 
   latched until reset: the reading is taken under load, so the voltage recovers by the sag
   (0.2–0.8 V at 10–40 A on two batteries) as soon as the motors stop, which would otherwise
   start and stop the rover in a loop near empty.
+* ``mavlink`` (priority 45): the MAVLink link on USART3 (``mavlink_baud``, 57600 8N1), see
+  :mod:`.mavlink_task`: telemetry, STATUSTEXT events, velocity commands into the command mailbox
+  (so the watchdog covers them), arming, parameters (the modules' PID gains over I2C, the battery
+  thresholds) and the ground station's heartbeat failsafe (``gcs_timeout_ms``).
 * ``status`` (priority 40, every 50 ms): the buzzer pattern of the battery state (LOW: one 100 ms
   beep every 5 s; CRITICAL: 200 ms on / 200 ms off; a missing module: three 100 ms beeps every
   2 s), LED1 heartbeat, LED2 fault, LED3 motors enabled.
 
 Commands. The host's velocity command (``cmd_vel.linear`` m/s, ``cmd_vel.angular`` rad/s,
 ``cmd_vel.lateral`` m/s for holonomic layouts) arrives in a mailbox (:meth:`cmd_vel_rx`), the seam
-where the MAVLink link on USART3 will deliver it; until then the host side of :meth:`publish`
-streams the last command at ``cmd_rate_hz`` (as mavros streams setpoints at 10–50 Hz), and
+where the MAVLink task on USART3 delivers its commands; the host side of :meth:`publish` (a
+companion wired to the mailbox, not gated by MAVLink arming) streams the last command at ``cmd_rate_hz`` (as mavros streams setpoints at 10–50 Hz), and
 ``cmd_vel.stream=false`` stops the stream (what the watchdog is for). Each publish is a *new*
 command (a new id); the stream repeats the same id, which keeps the watchdog fed but does not
 clear an E-stop latch.
@@ -46,6 +50,7 @@ from mcusim.fw.nuttx.lpc43_serial import Lpc43SerialDev
 from mcusim.fw.openrover_mcm import protocol as P
 from mcusim.fw.openrover_rcm.board import CiaaBoard
 from mcusim.fw.openrover_rcm.kinematics import make_layout, saturate
+from mcusim.fw.openrover_rcm.mavlink_task import SEV_CRITICAL, SEV_ERROR, SEV_NOTICE, SEV_WARNING, MavlinkLink
 from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16
 
 from mcusim.errors import ConfigError
@@ -76,6 +81,11 @@ DEFAULTS = {
     "i2c_frequency": Param(100_000, min=10_000, max=1_000_000, unit="Hz", doc="I2C0 SCL frequency"),
     # the USART's 16-bit divisor reaches 300 baud from 204 MHz; 3 Mbaud is the fastest standard rate
     "console_baud": Param(115200, min=300, max=3_000_000, unit="baud", doc="syslog on USART2"),
+    "mavlink_baud": Param(57600, min=300, max=3_000_000, unit="baud", doc="MAVLink on USART3 (UART_232)"),
+    "gcs_timeout_ms": Param(3000, min=100, max=3_600_000, unit="ms",
+                            doc="MAVLink: no ground-station heartbeat for this long disarms and stops"),
+    "manual_max_linear": Param(0.5, above=0, max=10.0, unit="m/s", doc="MANUAL_CONTROL x = 1000"),
+    "manual_max_yaw": Param(1.0, above=0, max=20.0, unit="rad/s", doc="MANUAL_CONTROL r = 1000"),
     # SysTick's 24-bit reload: at least 13 Hz at 204 MHz; NuttX runs 100 Hz to 10 kHz ticks
     "tick_hz": Param(1000, min=100, max=10_000, unit="Hz", doc="system tick (CONFIG_USEC_PER_TICK)"),
     "control_period_ms": Param(20, min=1, max=10_000, unit="ms", doc="control task period"),
@@ -102,6 +112,13 @@ DEFAULTS = {
     "cycles_battery": Param(1500, min=0, max=10_000_000, unit="cycles", doc="cost of one battery step"),
     "cycles_status": Param(300, min=0, max=10_000_000, unit="cycles", doc="cost of one status step"),
     "cycles_systick": Param(120, min=0, max=100_000, unit="cycles", doc="cost of the SysTick handler"),
+    "cycles_mavlink_wake": Param(400, min=0, max=10_000_000, unit="cycles", doc="MAVLink task: one pass"),
+    "cycles_mavlink_rx_byte": Param(60, min=0, max=100_000, unit="cycles",
+                                    doc="MAVLink task: mavlink_parse_char per received byte"),
+    "cycles_mavlink_handle": Param(1500, min=0, max=10_000_000, unit="cycles",
+                                   doc="MAVLink task: one received message handled"),
+    "cycles_mavlink_tx": Param(1200, min=0, max=10_000_000, unit="cycles",
+                               doc="MAVLink task: one message packed (fields, CRC) and queued"),
 }
 LAYOUT_GEOMETRY = {"differential": ("wheel_radius", "track_width"),
                    "skid_steer": ("wheel_radius", "track_width", "chi"),
@@ -131,6 +148,7 @@ INPUTS = {
 
 class RoverControl:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    MAVLINK_UART = "USART3"      # the UART of the MAVLink task (mcusim run --mavlink connects it)
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
     SUMMARY_TOP = ("odometry",)
 
@@ -170,6 +188,7 @@ class RoverControl:
         self.cmd_tick = None
         self.body_target = (0.0, 0.0, 0.0)
         self.wheel_setpoints = [0] * len(self.modules)     # counts/s sent to the modules
+        self.wheel_speeds = [0.0] * len(self.modules)      # rad/s of each wheel, from POSITION
         self.unwrap = [Unwrap16() for _ in self.modules]
         self.odometry = Odometry(self.layout, self.counts_per_wheel_rev)
         self.i2c_errors = 0
@@ -182,8 +201,10 @@ class RoverControl:
         self._host = {"linear": 0.0, "angular": 0.0, "lateral": 0.0, "stream": True, "id": 0}
         self._stream_ev = None
         self.i2c = None
+        self.link = None
         self.rtos.create_task("motor_control", self.motor_control(), priority=100)
         self.rtos.create_task("battery_monitor", self.battery_monitor(), priority=50)
+        self.rtos.create_task("mavlink", self.mavlink_task(), priority=45)
         self.rtos.create_task("status", self.status_task(), priority=40)
 
     # --- start-up (nx_start → board init → rover_control main) -------------------------------
@@ -203,11 +224,22 @@ class RoverControl:
         self.i2c = lpc43_i2c_init(self.mcu, frequency=self.p["i2c_frequency"])
         self.console = Lpc43SerialDev(self.mcu, 0x400C1000, 26, self.p["console_baud"], int(self.cpu.clock.hz))
         self.console.up_setup()
+        self.mavlink_dev = Lpc43SerialDev(self.mcu, 0x400C2000, 27, self.p["mavlink_baud"], int(self.cpu.clock.hz),
+                                          txbufsize=1024)
+        self.mavlink_dev.up_setup()
+        self.link = MavlinkLink(self, self.mavlink_dev)
         self.syslog(f"layout {self.layout.kind}, {len(self.modules)} motor modules on I2C0")
 
     def syslog(self, msg: str) -> None:
         """syslog() to the console: ``rover_control: <msg>`` and CR LF."""
         self.console.write(f"rover_control: {msg}\r\n".encode())
+
+    def notify(self, severity: int, msg: str, console: bool = True) -> None:
+        """An event: a syslog line and a MAVLink STATUSTEXT."""
+        if console:
+            self.syslog(msg)
+        if self.link is not None:
+            self.link.event(severity, msg)
 
     # --- motor-control module -------------------------------------------------------------------
     async def identify_modules(self) -> None:
@@ -222,7 +254,7 @@ class RoverControl:
                 self.missing.append(addr)
         if self.missing:
             self.faults.add("modules_missing")
-            self.syslog("motors disabled: no answer from " + " ".join(f"{a:#04x}" for a in self.missing))
+            self.notify(SEV_ERROR, "motors disabled: no answer from " + " ".join(f"{a:#04x}" for a in self.missing))
             return
         for addr in self.modules:     # PID on, faults cleared, set point 0
             await self._write_reg(addr, "SETPOINT", 0)
@@ -262,7 +294,9 @@ class RoverControl:
         now = self.rtos.tick_count
         pressed = self.board.gpio_read("ESTOP") == 0
         if pressed != self.estop_pressed:
-            self.syslog("E-STOP pressed" if pressed else "E-STOP released")
+            self.notify(SEV_CRITICAL if pressed else SEV_NOTICE, "E-STOP pressed" if pressed else "E-STOP released")
+            if pressed and self.link is not None:
+                self.link.disarm()
         self.estop_pressed = pressed
         if self.estop_pressed:
             self.estop_latched, self._estop_cmd_id = True, self.cmd_id
@@ -271,7 +305,7 @@ class RoverControl:
         fresh = self.cmd_tick is not None and now - self.cmd_tick <= self._ms(self.p["cmd_timeout_ms"])
         tripped = self.cmd_tick is not None and not fresh
         if tripped and not self.watchdog_tripped:
-            self.syslog(f"watchdog: no command for {self.p['cmd_timeout_ms']} ms, stopping")
+            self.notify(SEV_WARNING, f"watchdog: no command for {self.p['cmd_timeout_ms']} ms, stopping")
         self.watchdog_tripped = tripped
         if self.estop_latched or not fresh or self.battery_state == CRITICAL or not self.motors_enabled:
             return (0.0, 0.0, 0.0)
@@ -313,10 +347,12 @@ class RoverControl:
             for i, addr in enumerate(self.modules):
                 if await self._write_reg(addr, "SETPOINT", setpoints[i]) == 0:
                     self.wheel_setpoints[i] = setpoints[i]
-            counts = []
+            counts, before = [], [u.count for u in self.unwrap]
             for i, addr in enumerate(self.modules):
                 raw = await self._read_reg(addr, "POSITION")
                 counts.append(self.unwrap[i].update(raw) if raw is not None else self.unwrap[i].count)
+            k = 2 * math.pi / self.counts_per_wheel_rev / (self.p["control_period_ms"] / 1000)
+            self.wheel_speeds = [(c - b) * k for c, b in zip(counts, before)]
             self.odometry.update(counts)
             n += 1
             if n % 10 == 0:       # module status every 10 periods
@@ -325,6 +361,9 @@ class RoverControl:
                     if st is not None:
                         self.module_status[i] = st
                         if st & (P.ST_STALL | P.ST_OVERCURRENT):
+                            if f"module_{addr:#04x}_fault" not in self.faults:
+                                what = "stall" if st & P.ST_STALL else "driver fault"
+                                self.notify(SEV_ERROR, f"module {addr:#04x}: {what}", console=False)
                             self.faults.add(f"module_{addr:#04x}_fault")
 
     # --- battery monitor ---------------------------------------------------------------------------
@@ -343,7 +382,8 @@ class RoverControl:
         if s != self.battery_state:
             self.battery_state = s
             self.battery_log.append((self.mcu.kernel.now, s))
-            self.syslog(f"battery {s.upper()} {v:.2f} V")
+            self.notify(SEV_CRITICAL if s == CRITICAL else SEV_WARNING if s == LOW else SEV_NOTICE,
+                        f"battery {s.upper()} {v:.2f} V")
         return s
 
     async def battery_monitor(self):
@@ -358,6 +398,11 @@ class RoverControl:
             await self.cpu.cycles(self.p["cycles_battery"])
             wake += period
             await self.rtos.delay_until(wake)
+
+    # --- MAVLink -------------------------------------------------------------------------------------
+    async def mavlink_task(self):
+        await self.rtos.delay(1)          # after board_init (motor_control runs first)
+        await self.link.run()
 
     # --- buzzer and LEDs ------------------------------------------------------------------------
     def _pattern(self):
@@ -457,4 +502,5 @@ class RoverControl:
                 "motors_enabled": self.motors_enabled,
                 "battery_measured_v": self.battery_v, "battery_state": self.battery_state,
                 "estop_latched": self.estop_latched, "watchdog_tripped": self.watchdog_tripped,
-                "faults": sorted(self.faults), "i2c_errors": self.i2c_errors}
+                "faults": sorted(self.faults), "i2c_errors": self.i2c_errors,
+                **({"mavlink": self.link.summary()} if self.link is not None else {})}

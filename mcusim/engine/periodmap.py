@@ -78,34 +78,50 @@ def compose(flows):
 
 
 class PowerTable:
-    """Powers ``T^k`` (k = 0..n) of an augmented affine map ``T``, built by doubling."""
+    """Powers ``T^k`` (k = 0..n) of an augmented affine map ``T``, built by doubling and grown on
+    demand (a chunk that an input change cuts short never pays for powers it does not use). The
+    table only grows by whole doublings, so every entry is the same whether it was built at once
+    or in steps."""
 
-    __slots__ = ("_flat", "n", "powers")
+    __slots__ = ("_flat", "limit", "n", "powers")
 
     def __init__(self, T, n: int):
-        P = np.empty((n + 1, 4, 4))
-        P[0] = np.eye(4)
-        if n >= 1:
-            P[1] = T
-        m = 1
-        while m < n:
-            hi = min(2 * m, n)
-            # T^(m+j) = T^j · T^m for j = 1..hi-m (rows of the stacked T^j times one matrix)
-            P[m + 1:hi + 1] = (P[1:hi - m + 1].reshape(-1, 4) @ P[m]).reshape(-1, 4, 4)
-            m = hi
-        self.n, self.powers = n, P
+        self.limit = n                 # the most powers anyone may ask for
+        self.powers = np.empty((2, 4, 4))
+        self.powers[0] = np.eye(4)
+        self.powers[1] = T
+        self.n = 1
+        self._flat = self.powers.reshape(-1, 4)
+
+    def ensure(self, n: int) -> None:
+        """Make sure T^0 .. T^n are in the table."""
+        m = self.n
+        if n <= m:
+            return
+        size = m
+        while size < n:
+            size *= 2
+        P = np.empty((size + 1, 4, 4))
+        P[:m + 1] = self.powers
+        while m < size:
+            # T^(m+j) = T^j · T^m for j = 1..m (rows of the stacked T^j times one matrix)
+            P[m + 1:2 * m + 1] = (P[1:m + 1].reshape(-1, 4) @ P[m]).reshape(-1, 4, 4)
+            m *= 2
+        self.n, self.powers = size, P
         self._flat = P.reshape(-1, 4)
 
     def states(self, x0, n: int | None = None):
         """The states after k = 0..n periods from ``x0`` (rows (i, ω, θ))."""
-        return self.augmented_states(x0, self.n if n is None else n)[:, :3]
+        return self.augmented_states(x0, self.limit if n is None else n)[:, :3]
 
     def augmented_states(self, x0, n: int):
         """Rows (i, ω, θ, 1) after k = 0..n periods."""
+        self.ensure(n)
         v = np.array((x0[0], x0[1], x0[2], 1.0))
         return (self._flat[:4 * (n + 1)] @ v).reshape(n + 1, 4)
 
     def state(self, x0, k: int):
+        self.ensure(k)
         M = self.powers[k].tolist()
         a, b, c = x0
         return tuple(r[0] * a + r[1] * b + r[2] * c + r[3] for r in M[:3])

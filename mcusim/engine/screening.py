@@ -73,20 +73,23 @@ class PeriodPlan:
             self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
 
     def first_flag(self, x0, n: int, extra_guards):
-        """(k, X): the first period k (0..n) in which a guard may fire (n if none fires in n
-        periods), and the states X[0..k] at the period starts (rows (i, ω, θ, 1))."""
+        """(k, X, ib): the first period k (0..n) in which a guard may fire (n if none fires in n
+        periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), and a bound of |i|
+        over those k periods (at least as large as the largest |i| in them)."""
         X = self.table.augmented_states(x0, n)   # (n+1, 4)
         flag = n
+        ib = 0.0
         npieces = len(self.pieces)
         for p, pc in enumerate(self.pieces):
             b = self.bounds[p]
             if b is None:
-                return 0, X[:1]
+                return 0, X[:1], ib
             W, w, tau, absA, absu = b
             S = X[:flag] @ self.Q[p].T if p else X[:flag]
             E = X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
             ab = np.abs(S[:, :2])
             xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
+            ib = max(ib, float(xb[:, 0].max()))
             D = xb @ absA.T + absu                 # bound of |di/dt|, |dω/dt|
             guards = pc[4] + extra_guards
             if not guards:
@@ -101,9 +104,9 @@ class PeriodPlan:
             if anybad.any():
                 flag = int(np.argmax(anybad))
                 if flag == 0:
-                    return 0, X[:1]
+                    return 0, X[:1], ib
                 X = X[:flag + 1]
-        return flag, X
+        return flag, X, ib
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
@@ -116,12 +119,14 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, build_piece, X):
+    def __init__(self, plan: PeriodPlan, x0, build_piece, X, ibound=math.inf):
         self.plan, self.x0 = plan, tuple(x0)
+        self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
         self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1
         self._piece_memo = (None, None, None)   # (tick offset of a piece start, its state, closed form)
+        self._theta = None                   # θ at the period starts, as floats (first_fire)
 
     def first_fire(self, g, after: int, inv: float):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
@@ -129,11 +134,24 @@ class ChunkTraj:
         is found from the period-start values, and the tick inside it exactly as the edge-by-edge
         engine finds it: from the closed form of the piece (from ``after`` if that lies inside)."""
         ct, c0, strict = g[2], g[3], g[4]
-        h = self.X[:, 2] * ct + c0
-        fired = (h < 0.0) if strict else (h <= 0.0)
-        if not fired.any():
+        th = self._theta
+        if th is None:
+            th = self._theta = self.X[:, 2].tolist()
+
+        def fired(v):
+            h = v * ct + c0
+            return h < 0.0 if strict else h <= 0.0
+        # θ is monotone over the period starts, so "fired" is too: the first fired one by bisection
+        lo, hi = 0, len(th) - 1
+        if not fired(th[hi]):
             return None
-        kb = int(np.argmax(fired))
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if fired(th[mid]):
+                hi = mid
+            else:
+                lo = mid + 1
+        kb = lo
         plan = self.plan
         P = plan.P
         # θ is monotone: the crossing lies in the period ending at the first fired boundary kb
@@ -151,19 +169,30 @@ class ChunkTraj:
                 he = the * ct + c0
                 if not (he < 0.0 if strict else he <= 0.0):
                     continue
-                if ts >= after:
-                    v = plan.Q[p] @ Xq
-                    xs = (float(v[0]), float(v[1]), float(v[2]))
-                else:
-                    xs, ts = self.at(after), after
-                tr = self._build_piece(xs, pc[5], pc[6])
-                n = te - ts
-                xe = tr.eval(n * inv)
-                ha, hb = pwl.hval(g, xs), pwl.hval(g, xe)
-                k = pwl.first_fire_monotone(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), 0, n, ha, hb, strict)
+                xs, tr = self._piece(q, p)
+                lo, n = max(after - ts, 0), te - ts
+                ha = pwl.hval(g, tr.eval(lo * inv) if lo else xs)
+                hb = pwl.hval(g, tr.eval(n * inv))
+                k = pwl.first_fire_monotone(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), lo, n, ha, hb, strict)
                 if k is not None:
                     return ts + k
         return None
+
+    def _piece(self, q: int, p: int):
+        """(start state, closed form) of piece ``p`` of period ``q``; the last one is kept, since
+        reads and threshold searches come in runs inside one piece."""
+        plan = self.plan
+        ts = q * plan.P + plan.starts[p]
+        memo = self._piece_memo
+        if memo[0] == ts:
+            return memo[1], memo[2]
+        xk = self.x0 if q == 0 else plan.table.state(self.x0, q)
+        if p:
+            v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
+            xk = (float(v[0]), float(v[1]), float(v[2]))
+        tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
+        self._piece_memo = (ts, xk, tr)
+        return xk, tr
 
     def at(self, n: int):
         """State n ticks after the chunk start."""
@@ -176,18 +205,16 @@ class ChunkTraj:
         while p + 1 < len(starts) and starts[p + 1] <= r:
             p += 1
         rest = r - starts[p]
-        memo = self._piece_memo
-        if rest and memo[0] == n - rest:    # several reads inside one piece: one closed form
-            return memo[2].eval(rest * plan.inv)
-        xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
-        if p:
-            v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
-            xk = (float(v[0]), float(v[1]), float(v[2]))
         if rest == 0:
+            memo = self._piece_memo
+            if memo[0] == n:
+                return memo[1]
+            xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
+            if p:
+                v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
+                xk = (float(v[0]), float(v[1]), float(v[2]))
             return xk
-        tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
-        self._piece_memo = (n - rest, xk, tr)
-        return tr.eval(rest * plan.inv)
+        return self._piece(k, p)[1].eval(rest * plan.inv)
 
     def peak(self, n: int) -> float:
         """Largest |i| over the first n ticks: at every piece boundary and at the current's

@@ -188,6 +188,8 @@ class DcMotor(PeriodicDrive):
         self._plans = {}           # fast engine: PeriodPlan per (schedule, first piece, modes, params)
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
+        self._stale = False        # fast engine: inputs changed at this tick, rebuild due
+        self._rebuild_ev = None
         self._ev_passive = None    # fast engine: next passive guard (encoder threshold) in a segment
         self._passive = ()
         self._seg_end = 0
@@ -238,9 +240,26 @@ class DcMotor(PeriodicDrive):
             self._advance()
             fn()
             self._grow = False
-            self._rebuild()
+            if self._fast:
+                self._defer_rebuild()
+            else:
+                self._rebuild()
         finally:
             self._busy = False
+
+    def _defer_rebuild(self) -> None:
+        """Fast engine: inputs often change several times in one tick (the rover's battery and body
+        steps both land on each millisecond), so the segment is rebuilt once, after the plant's
+        events of this tick, from the same state and inputs the edge-by-edge engine's last rebuild
+        uses. Until then the state at this tick is the re-based x0 the old segment gives."""
+        self._stale = True
+        if self._rebuild_ev is None:
+            self._rebuild_ev = self.kernel.at(self.kernel.now, self._rebuild_due, prio=PRIO_PLANT + 1)
+
+    def _rebuild_due(self) -> None:
+        self._rebuild_ev = None
+        if self._stale:
+            self._sync()
 
     # ---- observers -------------------------------------------------------------------------------
     def _now_state(self):
@@ -322,7 +341,8 @@ class DcMotor(PeriodicDrive):
 
     def _segment_peak(self, tr, n: int):
         if tr.kind == "chunk":
-            return tr.peak(n)
+            # the screening's bound of |i| over the chunk: nothing in it can raise the peak so far
+            return 0.0 if self._peak >= tr.ibound else tr.peak(n)
         t = n * self._inv_hz
         x = tr.eval(t)
         p = abs(x[0])
@@ -361,6 +381,7 @@ class DcMotor(PeriodicDrive):
             tr = self._traj
             if tr.kind == "chunk":
                 self.chunk_ticks += n
+                self._chunk_lived(tr, n)
             self._peak = max(self._peak, self._segment_peak(tr, n))
             self._x0 = self._at(tr, n)
             self._prev = (self._t0, tr)
@@ -476,6 +497,7 @@ class DcMotor(PeriodicDrive):
         return guards
 
     def _rebuild(self):
+        self._stale = False
         if self._ev is not None:
             self._ev.cancel()
             self._ev = None

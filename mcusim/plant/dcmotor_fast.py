@@ -20,7 +20,7 @@ from . import pwl
 
 # whole-period chunks are screened CHUNK_MIN periods ahead at first, doubling up to CHUNK_MAX while
 # nothing fires
-CHUNK_MIN, CHUNK_MAX = 16, 512
+CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
 
 
 class PeriodicDrive:
@@ -73,7 +73,7 @@ class PeriodicDrive:
             if prov is not self._driver and not getattr(prov, "passive_guards", False):
                 extra.extend(prov.plant_guards())
         n = self._chunk_n
-        k, X = plan.first_flag(x0, n, tuple(extra))
+        k, X, ib = plan.first_flag(x0, n, tuple(extra))
         now = self.kernel.now
         if k == 0:
             self._chunk_n = CHUNK_MIN
@@ -81,11 +81,20 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X)
+        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X, ib)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
         return True
+
+    def _chunk_lived(self, tr, n: int) -> None:
+        """The chunk ``tr`` ends after ``n`` ticks. One that an input change cut short after m
+        periods moves the next horizon towards 2·(m + 1), halving it at most per cut (one early
+        cut is no pattern): screening periods that inputs changing at a steady rate (the rover's
+        1 ms battery and body steps) never let run is wasted work."""
+        P = tr.plan.P
+        if n < tr.periods * P:
+            self._chunk_n = max(min(2 * (n // P + 1), CHUNK_MAX), self._chunk_n // 2, CHUNK_LO)
 
     def _find_passive(self):
         """Schedule the next firing of a passive provider's guards (an encoder threshold: its
@@ -134,9 +143,9 @@ class PeriodicDrive:
     def _on_passive(self):
         self._ev_passive = None
         tr = self._traj
-        # the edge-by-edge engine starts a segment here, so its peak-current tracking samples this
-        # tick (with a complex eigenvalue pair it sees only segment ends): sample it too
-        self._peak = max(self._peak, abs(self._now_state()[0]))
+        # the edge-by-edge engine starts a segment here and samples |i| at its start: an interior
+        # point of this segment, never above the maximum the segment's own tracking finds (its
+        # boundaries and the current's stationary points), so nothing is sampled here
         for g in self._passive:
             g[5].on_guard(g[6])
         if self._traj is tr and self._ev_passive is None:

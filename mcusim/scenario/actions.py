@@ -16,6 +16,7 @@ from ..kernel import PRIO_INPUT
 from ..time import parse_duration
 from .check import _fmt_time
 from .faults import FAULTS
+from .mavlink import SendMavlink
 
 TURN_STEP = "1ms"                  # the hand of a "turn" re-sets the shaft speed this often
 
@@ -224,5 +225,6 @@ class Fault(Action):
 
 
 # the actions an [[at]] table may hold, in the order the messages list them
-ACTION_KINDS = {"publish": Publish(), "torque": Torque(), "turn": Turn(), "follow": Follow(), "fault": Fault()}
+ACTION_KINDS = {"publish": Publish(), "torque": Torque(), "turn": Turn(), "follow": Follow(), "fault": Fault(),
+                "mavlink": SendMavlink()}
 ACTIONS = tuple(ACTION_KINDS)

@@ -23,6 +23,7 @@ from .expect import (
     plan_expect,
     plan_follow,
 )
+from .mavlink import MavlinkExpect
 from .source import _Lines
 
 TABLES = ("scenario", "set", "at", "expect", "report")
@@ -95,7 +96,8 @@ class Scenario(Checker):
                                 f"[[at]] tables must be in time order")
             self.steps.append(step)
             prev = step
-        self.expects: list[_Expect] = [parse_expect(self, i, e) for i, e in enumerate(self._array(data, "expect"))]
+        self.expects: list = [MavlinkExpect(self, i, e) if isinstance(e, dict) and "mavlink" in e
+                              else parse_expect(self, i, e) for i, e in enumerate(self._array(data, "expect"))]
 
         self.report_spec: dict = {}
         rep = data.get("report", {})
@@ -106,7 +108,7 @@ class Scenario(Checker):
             if name in rep:
                 self.report_spec[name] = self._fields("report", None, (name,), rep[name], fields)
         for e in self.expects:
-            if e.source[0] == "report":
+            if isinstance(e, _Expect) and e.source[0] == "report":
                 check_report_path(self, e)
 
     def _array(self, data, name) -> list:
@@ -223,7 +225,8 @@ class Scenario(Checker):
         self._follow = None
         if follow is not None:
             plan.extend(plan_follow(self, sim, follow, end))
-        plan.extend(plan_expect(self, sim, e, end) for e in self.expects)
+        plan.extend(plan_expect(self, sim, e, end) if isinstance(e, _Expect) else e.plan(self, sim, end)
+                    for e in self.expects)
         self._sim = sim
         self.log = []
         for tick, prio, fn in plan:

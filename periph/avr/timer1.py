@@ -139,6 +139,7 @@ class AvrTimer(SteadyOutputs, Peripheral):
         self._ks = 0            # flags are known for every clock <= _ks
         self._kblock = -1       # clock whose compare matches are blocked by a TCNT write
         self._ev = None
+        self._in_clock = False      # inside _on_clock: an ISR entry clearing a flag need not plan
 
     # ------------------------------------------------------------------ public helpers
     @property
@@ -249,6 +250,8 @@ class AvrTimer(SteadyOutputs, Peripheral):
         self._sync_now()
         self.value[self.TIFR] &= ~bit
         self._lines()
+        if self._in_clock:
+            return      # taken from inside _on_clock (the flag it set): that clock plans at its end
         self._plan(self._clock_now())
 
     def _flag_clock(self, k, bit):
@@ -364,6 +367,13 @@ class AvrTimer(SteadyOutputs, Peripheral):
             self._ev = self.kernel.at(K * self._N * self._P, self._on_clock, K)
 
     def _on_clock(self, K):
+        self._in_clock = True
+        try:
+            self._clock(K)
+        finally:
+            self._in_clock = False
+
+    def _clock(self, K):
         self._ev = None
         if self.kernel.fast:
             self._wave_latch(K * self._N * self._P - 1)   # the level before this clock

@@ -1,0 +1,433 @@
+"""``mavlink`` task of ``rover_control``: the ground-station / companion-computer link on USART3.
+
+Written like the C task on the MAVLink C headers, with pymavlink's generated ``common`` dialect in
+their place (``mavlink_msg_*_pack`` + ``_mav_finalize_message_chan_send`` are ``<msg>_encode`` +
+``MAVLink.send``; ``mavlink_parse_char`` is ``MAVLink.parse_buffer``): framing, CRC and field
+packing are the library's. The task sends MAVLink 2 and parses MAVLink 1 and 2.
+
+Loop (a NuttX task blocked in ``poll()`` on the serial device): wait until received bytes are
+available or the next telemetry message is due, parse what arrived, handle each message, send
+what is due. System 1, component 1 (MAV_COMP_ID_AUTOPILOT1), MAV_TYPE_GROUND_ROVER,
+MAV_AUTOPILOT_GENERIC. Streams and their default intervals are in ``STREAMS`` (changed by
+MAV_CMD_SET_MESSAGE_INTERVAL, sent once by MAV_CMD_REQUEST_MESSAGE).
+
+Bytes that are not a valid frame (garbage, a bad CRC, a truncated frame, an unknown message id)
+are counted in ``rx_errors`` and skipped (a frame of an id outside the dialect counts as invalid:
+without its CRC_EXTRA its checksum cannot be verified). Unlike ``mavlink_parse_char``, which drops every byte of
+a frame whose CRC fails, the task rescans such a frame from its second byte: a start byte in
+garbage followed by a large length byte would otherwise swallow the valid frames behind it.
+
+Transmit: a message is written only if the serial transmit buffer has room for the whole frame
+(``poll(POLLOUT)``); otherwise it is skipped and counted in ``tx_skipped`` (the sequence number
+still advances, so the receiver sees the gap), except for parameter-list items, which wait.
+
+Cycle costs (declared, ``firmware.cycles_mavlink_*``): one wake-up, each received byte
+(``mavlink_parse_char``), each message handled and each message packed and queued.
+"""
+
+from __future__ import annotations
+
+import math
+
+MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC = 10, 0
+MODE_CUSTOM, MODE_GUIDED, MODE_ARMED = 1, 8, 128
+STATE_BOOT, STATE_STANDBY, STATE_ACTIVE, STATE_CRITICAL, STATE_EMERGENCY = 1, 3, 4, 5, 6
+SEV_CRITICAL, SEV_ERROR, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 3, 4, 5, 6
+RESULT_ACCEPTED, RESULT_TEMP_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
+CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPS = 400, 511, 512, 520
+PARAM_REAL32 = 9
+SENSOR_MOTORS, SENSOR_BATTERY = 0x8000, 0x02000000
+CAPS = 2 | 128 | 8192     # PARAM_FLOAT | SET_POSITION_TARGET_LOCAL_NED | MAVLINK2
+FRAME_LOCAL_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 8, 9, 12
+IGNORE_VX, IGNORE_VY, IGNORE_YAW_RATE = 8, 16, 2048
+AXIS_INVALID = 0x7FFF
+
+# message id -> default interval in ms (0: only on request)
+STREAMS = {0: 1000, 1: 1000, 147: 1000, 32: 100, 30: 100, 251: 200, 148: 0}
+STREAM_NAMES = {0: "HEARTBEAT", 1: "SYS_STATUS", 147: "BATTERY_STATUS", 32: "LOCAL_POSITION_NED",
+                30: "ATTITUDE", 251: "NAMED_VALUE_FLOAT", 148: "AUTOPILOT_VERSION"}
+GAIN_PARAMS = {"WHL_KP": "KP", "WHL_KI": "KI", "WHL_KD": "KD"}
+BATTERY_PARAMS = {"BATT_LOW_V": "low_v", "BATT_CRIT_V": "critical_v", "BATT_HYST_V": "hysteresis_v"}
+PARAM_IDS = tuple(GAIN_PARAMS) + tuple(BATTERY_PARAMS)
+
+
+class MavlinkLink:
+    """The task's state and its handlers; ``rc`` is the RoverControl it serves."""
+
+    def __init__(self, rc, serial):
+        from pymavlink.dialects.v20 import common as mavlink
+
+        self.rc, self.serial, self.p = rc, serial, rc.p
+        self.ml = mavlink
+        self.mav = mavlink.MAVLink(self, srcSystem=1, srcComponent=1)
+        self.mav.robust_parsing = True
+        self.intervals = dict(STREAMS)          # message id -> interval in ms (0: off)
+        self.due = {mid: 0 for mid in STREAMS}
+        self.once: list[int] = []               # REQUEST_MESSAGE: sent at the next pass
+        self.statustext: list[tuple[int, str]] = []
+        # poll() on the serial device and on the event queue: one wake-up for both
+        self.wake = serial.rxavail
+        self._text_id = 0
+        self.param_queue: list[int] = []        # indices still to send (PARAM_REQUEST_LIST)
+        self.gains = None                       # (KP, KI, KD) as read from the first module
+        self.armed = False
+        self.gcs_tick = None                    # tick of the last GCS heartbeat
+        self.gcs_lost = False
+        self._cmd_key = None
+        self._next_cmd_id = -1
+        self._cost = 0
+        self.rx_frames = self.rx_errors = self.tx_frames = self.tx_skipped = self.ignored = 0
+        self.last_busy = (0, 0)                 # (tick, cpu busy ticks) for the load figure
+
+    # --- file-like for pymavlink: write() is the serial device's write() -----------------------------
+    def write(self, buf) -> int:
+        buf = bytes(buf)
+        self._cost += self.p["cycles_mavlink_tx"]
+        if self.serial.txroom < len(buf):
+            self.tx_skipped += 1
+            return 0
+        self.tx_frames += 1
+        return self.serial.write(buf)
+
+    def send(self, msg) -> None:
+        self.mav.send(msg)
+
+    # --- the task ---------------------------------------------------------------------------------
+    async def run(self):
+        rtos, cpu = self.rc.rtos, self.rc.cpu
+        while True:
+            now = rtos.tick_count
+            self._cost += self.p["cycles_mavlink_wake"]
+            self.check_gcs(now)
+            self.send_due(now)
+            await self.param_step()
+            if self._cost:
+                cost, self._cost = self._cost, 0
+                await cpu.cycles(cost)
+            now = rtos.tick_count
+            nxt = min((t for mid, t in self.due.items() if self.intervals[mid] > 0), default=now + 1000)
+            if self.param_queue or self.once or self.statustext:
+                nxt = now + 1
+            if not self.serial.recv:
+                await rtos.wait_signal(self.wake, timeout=max(1, nxt - now))
+            data = self.serial.read()
+            if data:
+                await cpu.cycles(self.p["cycles_mavlink_rx_byte"] * len(data))
+                for msg in self.parse(data):
+                    await self.handle(msg)
+                    await cpu.cycles(self.p["cycles_mavlink_handle"])
+
+    def parse(self, data: bytes) -> list:
+        """Valid messages in ``data``, with every invalid stretch counted and rescanned."""
+        out = []
+        queue = self._parse_buffer(data)
+        i = 0
+        while i < len(queue):
+            m = queue[i]
+            if m.get_type().startswith("UNKNOWN_"):   # an id outside the dialect: no CRC_EXTRA to check it
+                m = self.ml.MAVLink_bad_data(m.get_msgbuf(), "unknown message id")
+            if m.get_type() != "BAD_DATA":
+                self.rx_frames += 1
+                out.append(m)
+            else:
+                self.rx_errors += 1
+                if m.reason != "Bad prefix" and len(m.data) > 1:
+                    tail = b"".join(bytes(x.data) if x.get_type() == "BAD_DATA" else bytes(x.get_msgbuf())
+                                    for x in queue[i + 1:])
+                    tail += bytes(self.mav.buf[self.mav.buf_index:])
+                    self.mav.buf, self.mav.buf_index = bytearray(), 0
+                    self.mav.expected_length = self.ml.HEADER_LEN_V1 + 2
+                    queue = queue[: i + 1] + self._parse_buffer(bytes(m.data[1:]) + tail)
+            i += 1
+        return out
+
+    def _parse_buffer(self, data: bytes) -> list:
+        try:
+            return self.mav.parse_buffer(data) or []
+        except self.ml.MAVError:        # not raised with robust_parsing; a guard for the link's sake
+            self.rx_errors += 1
+            self.mav.buf, self.mav.buf_index = bytearray(), 0
+            return []
+
+    # --- telemetry -----------------------------------------------------------------------------------
+    def time_boot_ms(self) -> int:
+        return self.rc.rtos.tick_count * 1000 // self.p["tick_hz"]
+
+    def _ticks(self, ms: int) -> int:
+        return max(1, round(ms * self.p["tick_hz"] / 1000))
+
+    def send_due(self, now: int) -> None:
+        for severity, text in self.statustext:
+            raw = text.encode()
+            if len(raw) <= 50:
+                self.send(self.ml.MAVLink_statustext_message(severity, raw))
+                continue
+            self._text_id = self._text_id % 0xFFFF + 1     # a long text in chunks of 50 bytes
+            chunks = [raw[i:i + 50] for i in range(0, len(raw), 50)]
+            for seq, chunk in enumerate(chunks):
+                self.send(self.ml.MAVLink_statustext_message(severity, chunk, self._text_id, seq))
+        self.statustext.clear()
+        for mid in self.once:
+            self.send_stream(mid)
+        self.once.clear()
+        for mid, iv in self.intervals.items():
+            if iv > 0 and now >= self.due[mid]:
+                self.due[mid] = max(self.due[mid] + self._ticks(iv), now)
+                self.send_stream(mid)
+
+    def heartbeat_state(self) -> tuple[int, int]:
+        rc = self.rc
+        base = MODE_CUSTOM | ((MODE_ARMED | MODE_GUIDED) if self.armed else 0)
+        if rc.estop_pressed or rc.estop_latched:
+            status = STATE_EMERGENCY
+        elif rc.battery_state == "critical" or rc.faults:
+            status = STATE_CRITICAL
+        elif not (rc.motors_enabled or rc.missing):
+            status = STATE_BOOT
+        else:
+            status = STATE_ACTIVE if self.armed else STATE_STANDBY
+        return base, status
+
+    def body_velocity(self) -> tuple:
+        return self.rc.layout.forward(self.rc.wheel_speeds)
+
+    def send_stream(self, mid: int) -> None:
+        rc, ml, t = self.rc, self.ml, self.time_boot_ms()
+        if mid == 0:
+            base, status = self.heartbeat_state()
+            self.send(ml.MAVLink_heartbeat_message(MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC, base, 0, status, 3))
+        elif mid == 1:
+            health = SENSOR_MOTORS if not rc.faults else 0
+            health |= SENSOR_BATTERY if rc.battery_state != "critical" else 0
+            mv = 0xFFFF if rc.battery_v is None else min(0xFFFE, round(rc.battery_v * 1000))
+            self.send(ml.MAVLink_sys_status_message(
+                SENSOR_MOTORS | SENSOR_BATTERY, SENSOR_MOTORS | SENSOR_BATTERY, health, self.load_permille(),
+                mv, -1, -1, 0, min(0xFFFF, self.rx_errors), 0, 0, 0, 0, 0, 0, 0))
+        elif mid == 147:
+            mv = 0xFFFF if rc.battery_v is None else min(0xFFFE, round(rc.battery_v * 1000))
+            charge = {"normal": 1, "low": 2, "critical": 3}[rc.battery_state]
+            self.send(ml.MAVLink_battery_status_message(
+                0, 2, 0, 0x7FFF, [mv] + [0xFFFF] * 9, -1, -1, -1, -1, 0, charge, [0, 0, 0, 0], 0, 0))
+        elif mid == 32:
+            x, y, yaw = rc.odometry.pose
+            vx, vy, _ = self.body_velocity()
+            c, s = math.cos(yaw), math.sin(yaw)      # odometry frame (x fwd, y left) -> NED (y right)
+            self.send(ml.MAVLink_local_position_ned_message(t, x, -y, 0.0, c * vx - s * vy, -(s * vx + c * vy), 0.0))
+        elif mid == 30:
+            _, _, yaw = rc.odometry.pose
+            wz = self.body_velocity()[2]
+            self.send(ml.MAVLink_attitude_message(t, 0.0, 0.0, -yaw, 0.0, 0.0, -wz))
+        elif mid == 251:
+            k = 2 * math.pi / (self.p["gear_ratio"] * self.p["counts_per_motor_rev"])
+            for i in range(len(rc.modules)):
+                self.send(ml.MAVLink_named_value_float_message(t, f"W{i + 1}_VEL".encode(), rc.wheel_speeds[i]))
+                self.send(ml.MAVLink_named_value_float_message(t, f"W{i + 1}_CMD".encode(),
+                                                               rc.wheel_setpoints[i] * k))
+        elif mid == 148:
+            self.send(ml.MAVLink_autopilot_version_message(CAPS, 0, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0,
+                                                           [0] * 18))
+
+    def load_permille(self) -> int:
+        """CPU load over the last SYS_STATUS interval, from the core's busy time (d%)."""
+        now, busy = self.rc.mcu.kernel.now, self.rc.cpu.busy_ticks
+        t0, b0 = self.last_busy
+        self.last_busy = (now, busy)
+        return 0 if now == t0 else min(1000, (busy - b0) * 1000 // (now - t0))
+
+    def event(self, severity: int, text: str) -> None:
+        """Queue a STATUSTEXT (sent at the task's next pass)."""
+        self.statustext.append((severity, text))
+        self.wake.fire()
+
+    # --- failsafes -------------------------------------------------------------------------------------
+    def check_gcs(self, now: int) -> None:
+        lost = self.gcs_tick is not None and now - self.gcs_tick > self._ticks(self.p["gcs_timeout_ms"])
+        if lost and not self.gcs_lost:
+            self.event(SEV_WARNING, f"GCS heartbeat lost for {self.p['gcs_timeout_ms']} ms: stopping")
+            self.disarm()
+        self.gcs_lost = lost
+
+    def disarm(self) -> None:
+        if self.armed:
+            self.armed = False
+            self._command(0.0, 0.0, 0.0)
+
+    def _command(self, vx: float, vy: float, wz: float) -> None:
+        """A velocity command into the controller's mailbox; a changed value is a new command."""
+        key = (vx, vy, wz)
+        if key != self._cmd_key:
+            self._cmd_key, self._next_cmd_id = key, self._next_cmd_id - 1
+        self.rc.cmd_vel_rx(vx, vy, wz, self._next_cmd_id)
+
+    # --- received messages ------------------------------------------------------------------------------
+    def _for_me(self, system: int, component: int | None = None) -> bool:
+        return system in (0, 1) and (component is None or component in (0, 1))
+
+    async def handle(self, m) -> None:
+        kind = m.get_type()
+        handler = getattr(self, "on_" + kind.lower(), None)
+        if handler is None:
+            self.ignored += 1
+            return
+        await handler(m)
+
+    async def on_heartbeat(self, m) -> None:
+        # a ground station (QGC: 255.190) or a companion computer (mavros: 1.191), not ourselves
+        if (m.get_srcSystem(), m.get_srcComponent()) != (1, 1):
+            self.gcs_tick = self.rc.rtos.tick_count
+
+    async def on_command_long(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        result = self.command(m.command, (m.param1, m.param2, m.param3))
+        self.send(self.ml.MAVLink_command_ack_message(m.command, result, 0, 0, m.get_srcSystem(),
+                                                      m.get_srcComponent()))
+
+    async def on_command_int(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        self.send(self.ml.MAVLink_command_ack_message(m.command, RESULT_UNSUPPORTED, 0, 0, m.get_srcSystem(),
+                                                      m.get_srcComponent()))
+
+    def command(self, cmd: int, params) -> int:
+        rc = self.rc
+        if cmd == CMD_ARM_DISARM:
+            if params[0] == 0.0:
+                self.disarm()
+                return RESULT_ACCEPTED
+            if params[0] != 1.0:
+                return RESULT_DENIED
+            if rc.estop_pressed:
+                return RESULT_TEMP_REJECTED
+            if rc.battery_state == "critical" or not rc.motors_enabled:
+                return RESULT_DENIED
+            if not self.armed:
+                self.armed, self._cmd_key = True, None
+                self.gcs_lost = False
+            return RESULT_ACCEPTED
+        if cmd == CMD_SET_INTERVAL:
+            mid, us = int(params[0]), params[1]
+            if mid not in STREAMS or not math.isfinite(us) or (us < 0 and us != -1):
+                return RESULT_DENIED
+            self.intervals[mid] = STREAMS[mid] if us == 0 else (0 if us == -1 else max(1, round(us / 1000)))
+            self.due[mid] = rc.rtos.tick_count
+            return RESULT_ACCEPTED
+        if cmd == CMD_REQUEST_MESSAGE:
+            mid = int(params[0]) if math.isfinite(params[0]) else -1
+            if mid not in STREAMS:
+                return RESULT_DENIED
+            self.once.append(mid)
+            return RESULT_ACCEPTED
+        if cmd == CMD_REQUEST_CAPS:
+            self.once.append(148)
+            return RESULT_ACCEPTED
+        return RESULT_UNSUPPORTED
+
+    async def on_set_position_target_local_ned(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        if not self.armed or m.type_mask & (IGNORE_VX | IGNORE_VY) or m.coordinate_frame not in (
+                FRAME_LOCAL_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD):
+            self.ignored += 1
+            return
+        fwd, right = m.vx, m.vy
+        if m.coordinate_frame == FRAME_LOCAL_NED:      # rotate by the heading (NED yaw = -odometry yaw)
+            psi = -self.rc.odometry.pose[2]
+            fwd, right = m.vx * math.cos(psi) + m.vy * math.sin(psi), -m.vx * math.sin(psi) + m.vy * math.cos(psi)
+        wz = 0.0 if m.type_mask & IGNORE_YAW_RATE else -m.yaw_rate
+        if not all(math.isfinite(v) for v in (fwd, right, wz)):
+            self.ignored += 1
+            return
+        self._command(fwd, -right if self.rc.layout.holonomic else 0.0, wz)
+
+    async def on_manual_control(self, m) -> None:
+        if m.target not in (0, 1) or not self.armed:
+            self.ignored += 1
+            return
+        x = 0 if m.x == AXIS_INVALID else max(-1000, min(1000, m.x))
+        r = 0 if m.r == AXIS_INVALID else max(-1000, min(1000, m.r))
+        self._command(x / 1000 * self.p["manual_max_linear"], 0.0, -r / 1000 * self.p["manual_max_yaw"])
+
+    async def on_mission_request_list(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        self.send(self.ml.MAVLink_mission_count_message(m.get_srcSystem(), m.get_srcComponent(), 0,
+                                                        m.mission_type))
+
+    # --- parameters ------------------------------------------------------------------------------------
+    async def on_param_request_list(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        self.param_queue = list(range(len(PARAM_IDS)))
+
+    async def on_param_request_read(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        idx = m.param_index if m.param_index >= 0 else self._index(m.param_id)
+        if idx is None or not 0 <= idx < len(PARAM_IDS):
+            self.ignored += 1
+            return
+        await self.send_param(idx)
+
+    async def on_param_set(self, m) -> None:
+        if not self._for_me(m.target_system, m.target_component):
+            self.ignored += 1
+            return
+        idx = self._index(m.param_id)
+        if idx is None:
+            self.ignored += 1
+            return
+        name, v = PARAM_IDS[idx], float(m.param_value)
+        if name in GAIN_PARAMS:
+            if self.rc.motors_enabled and math.isfinite(v) and v >= 0:
+                for addr in self.rc.modules:
+                    await self.rc._write_reg(addr, GAIN_PARAMS[name], v)
+                self.gains = None            # read back what the modules took
+        elif math.isfinite(v) and 0 <= v <= 100:
+            key = BATTERY_PARAMS[name]
+            trial = {**self.p, key: v}
+            if trial["critical_v"] < trial["low_v"] and trial["hysteresis_v"] <= 10:
+                self.p[key] = v            # refused values are echoed unchanged
+        await self.send_param(idx)
+
+    def _index(self, param_id) -> int | None:
+        pid = param_id if isinstance(param_id, str) else bytes(param_id).decode("ascii", "replace")
+        pid = pid.split("\x00")[0]
+        return PARAM_IDS.index(pid) if pid in PARAM_IDS else None
+
+    async def read_gains(self) -> None:
+        if self.gains is None and self.rc.motors_enabled:
+            addr = self.rc.modules[0]
+            got = [await self.rc._read_reg(addr, reg) for reg in ("KP", "KI", "KD")]
+            if None not in got:
+                self.gains = tuple(got)
+
+    async def param_value(self, idx: int) -> float:
+        name = PARAM_IDS[idx]
+        if name in GAIN_PARAMS:
+            await self.read_gains()
+            return math.nan if self.gains is None else self.gains[list(GAIN_PARAMS).index(name)]
+        return float(self.p[BATTERY_PARAMS[name]])
+
+    async def send_param(self, idx: int) -> bool:
+        value = await self.param_value(idx)
+        if self.serial.txroom < 40:          # PARAM_VALUE is 37 bytes on the wire: wait for room
+            return False
+        self.send(self.ml.MAVLink_param_value_message(PARAM_IDS[idx].encode(), value, PARAM_REAL32,
+                                                      len(PARAM_IDS), idx))
+        return True
+
+    async def param_step(self) -> None:
+        """PARAM_REQUEST_LIST: one PARAM_VALUE per pass, paced by the transmit buffer."""
+        if self.param_queue and await self.send_param(self.param_queue[0]):
+            self.param_queue.pop(0)
+
+    def summary(self) -> dict:
+        return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
+                "tx_frames": self.tx_frames, "tx_skipped": self.tx_skipped, "gcs_lost": self.gcs_lost}

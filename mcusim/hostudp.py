@@ -1,0 +1,159 @@
+"""A serial-to-UDP adapter as a host end of a simulated UART (the endpoint protocol of
+:mod:`mcusim.hostserial`), and the ``--mavlink`` link specifications of the command line.
+
+Like a hardware serial-to-UDP bridge (ser2net, a WiFi telemetry module), it carries a byte
+stream: the bytes the USART transmitted since the previous poll go out as one datagram at each
+poll event (every ``poll`` of simulated time, default 1 ms), and every datagram received is put on
+the USART's RX line at the poll event that reads it, one USART frame per byte. MAVLink frames may
+therefore be split across datagrams; ground stations and pymavlink parse UDP links as a stream.
+
+* ``udpout:HOST:PORT``: sends to HOST:PORT from an ephemeral port and takes replies on it
+  (QGroundControl listens on UDP 14550);
+* ``udpin:HOST:PORT``: listens on HOST:PORT and sends to whoever sent the last datagram (nothing
+  goes out, and ``dropped`` counts the bytes, until a peer has spoken).
+
+Sockets are non-blocking: the simulation never waits for the host. A datagram the host's stack
+refuses (no listener: ECONNREFUSED, a full buffer) is dropped and counted in ``dropped``.
+Determinism: as for :class:`mcusim.hostserial.PtyEndpoint`, what arrives when depends on the host;
+``injected`` logs every ``(tick, bytes)`` handed to the USART, and replaying it with
+``BufferEndpoint.feed_at`` reproduces the run.
+"""
+
+from __future__ import annotations
+
+import socket
+
+from .errors import ConfigError
+from .kernel import PRIO_INPUT
+
+MAX_DATAGRAM = 65507
+
+
+class UdpEndpoint:
+    def __init__(self, mode: str, host: str, port: int, poll="1ms"):
+        if mode not in ("udpin", "udpout"):
+            raise ConfigError(f"UDP link mode {mode!r}: expected udpin or udpout")
+        self.mode, self.host, self.port, self.poll_spec = mode, host, port, poll
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            addr = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
+            if mode == "udpin":
+                self.sock.bind(addr)
+                self.peer = None
+            else:
+                self.sock.bind(("0.0.0.0", 0))
+                self.peer = addr
+        except OSError as exc:
+            self.sock.close()
+            raise ConfigError(f"--mavlink {mode}:{host}:{port}: {exc.strerror or exc}") from None
+        self.sock.setblocking(False)
+        self.usart = None
+        self.poll = None
+        self._ev = None
+        self._out = bytearray()
+        self.dropped = 0
+        self.injected: list[tuple[int, bytes]] = []
+        self.closed = False
+
+    @property
+    def address(self) -> tuple:
+        return self.sock.getsockname()
+
+    # --- endpoint protocol ---------------------------------------------------------------------
+    def attach(self, usart) -> None:
+        self.usart = usart
+        kernel = usart.kernel
+        poll = self.poll_spec if isinstance(self.poll_spec, int) else kernel.timebase.ticks(self.poll_spec,
+                                                                                          rounding=True)
+        if poll <= 0:
+            raise ConfigError(f"UDP poll interval {self.poll_spec!r} must be at least one base tick")
+        self.poll = poll
+        if self._ev is not None:
+            self._ev.cancel()
+        self._ev = kernel.after(poll, self._poll, prio=PRIO_INPUT)
+
+    def transmit(self, byte: int, tick: int) -> None:
+        if not self.closed:
+            self._out.append(byte)
+
+    # --- host side -----------------------------------------------------------------------------
+    def _flush(self) -> None:
+        if not self._out:
+            return
+        data, self._out = bytes(self._out), bytearray()
+        if self.peer is None:
+            self.dropped += len(data)
+            return
+        for i in range(0, len(data), MAX_DATAGRAM):
+            try:
+                self.sock.sendto(data[i:i + MAX_DATAGRAM], self.peer)
+            except OSError:                 # no listener (ICMP refused), buffer full: the bytes are lost
+                self.dropped += len(data[i:i + MAX_DATAGRAM])
+
+    def _receive(self) -> bytes:
+        got = bytearray()
+        while True:
+            try:
+                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:                 # e.g. ECONNREFUSED reported for an earlier send
+                continue
+            if self.mode == "udpin":
+                self.peer = addr
+            got += data
+        return bytes(got)
+
+    def _poll(self) -> None:
+        self._ev = None
+        if self.closed:
+            return
+        self._flush()
+        data = self._receive()
+        if data:
+            self.injected.append((self.usart.kernel.now, data))
+            self.usart.receive(data)
+        self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        self.sock.close()
+
+
+def parse_link(spec: str, what: str = "--mavlink"):
+    """``pty``, ``udpout:HOST:PORT`` or ``udpin:HOST:PORT`` (pymavlink's connection-string syntax):
+    ``("pty",)`` or ``(mode, host, port)``; ConfigError for anything else."""
+    text = spec.strip()
+    if text == "pty":
+        return ("pty",)
+    mode, _, rest = text.partition(":")
+    host, _, port = rest.rpartition(":")
+    lowest = 0 if mode == "udpin" else 1          # udpin:HOST:0 listens on a free port (printed)
+    if mode in ("udpout", "udpin") and host and port.isdigit() and lowest <= int(port) < 65536:
+        return (mode, host, int(port))
+    raise ConfigError(f"{what} {spec!r}: expected pty, udpout:HOST:PORT or udpin:HOST:PORT "
+                      "(udpout:127.0.0.1:14550 reaches QGroundControl)")
+
+
+def open_link(spec: str, what: str = "--mavlink"):
+    """The endpoint a link specification names (not yet attached to a UART)."""
+    parsed = parse_link(spec, what)
+    if parsed[0] == "pty":
+        from .hostserial import PtyEndpoint
+        return PtyEndpoint()
+    return UdpEndpoint(*parsed)
+
+
+def describe(endpoint) -> str:
+    """One line for the user: where to connect."""
+    if hasattr(endpoint, "path"):
+        return f"{endpoint.path} (pty: mavproxy.py --master={endpoint.path}, mavros serial://{endpoint.path})"
+    host, port = endpoint.address[:2]
+    if endpoint.mode == "udpout":
+        return f"UDP to {endpoint.peer[0]}:{endpoint.peer[1]} from {host}:{port}"
+    return f"UDP on {host}:{port} (connect with udpout:{host}:{port})"

@@ -1,0 +1,143 @@
+"""A MAVLink ground station in simulated time: pymavlink's own packing and parsing over an
+in-memory serial endpoint on a simulated UART.
+
+::
+
+    from mcusim.mavlink import MavlinkClient
+
+    gcs = MavlinkClient(sim, "USART3", member="rcm")          # connects the UART
+    hb = gcs.recv_match("HEARTBEAT", timeout="1.5s")          # runs the simulation until it comes
+    gcs.mav.command_long_send(1, 0, 400, 0, 1, 0, 0, 0, 0, 0, 0)   # pymavlink's generated sender
+    ack = gcs.recv_match("COMMAND_ACK", timeout="0.2s")
+
+``mav`` is a ``pymavlink.dialects.v20.common.MAVLink`` whose file is the UART's RX line: each
+``*_send`` puts the frame on the line now, one USART frame per byte. Received frames are parsed
+byte by byte as the USART's TX frames end; ``log`` holds ``(tick, message)`` for every valid
+message, in order. Waits run the simulation (simulated time; the host clock plays no part) and
+raise :class:`mcusim.testing.SimTimeout` when nothing matching arrives in time.
+
+``heartbeat_hz`` (default 1; 0 for none) sends a GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)
+at that rate of simulated time from the first tick on, as QGroundControl and mavros do.
+"""
+
+from __future__ import annotations
+
+from .errors import ConfigError
+from .hostserial import BufferEndpoint
+from .kernel import PRIO_INPUT
+from .testing import SimTimeout
+
+MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID = 6, 8
+
+
+def _dialect():
+    try:
+        from pymavlink.dialects.v20 import common
+    except ImportError as exc:          # a dependency of mcusim; a broken install says so plainly
+        raise ConfigError(f"MAVLink needs pymavlink (pip install pymavlink): {exc}") from None
+    return common
+
+
+def mavlink_port(sim) -> tuple:
+    """``(uart, member)`` of the simulation's MAVLink firmware (its ``MAVLINK_UART``; ``member`` is
+    the system member running it, None for a single board); ConfigError when there is none."""
+    fw = sim.firmware
+    uart = getattr(fw, "MAVLINK_UART", None)
+    if uart is None:
+        raise ConfigError(f"{sim.board_name} runs no firmware with a MAVLink link (the rover controller "
+                          "has one: elementall, ciaa-edu)")
+    member = next((n for n, m in sim.members.items() if m.get("firmware") is fw), None)
+    return uart, (member if len(sim.members) > 1 else None)
+
+
+class _ParsingEndpoint(BufferEndpoint):
+    def __init__(self, client):
+        super().__init__()
+        self.client = client
+
+    def transmit(self, byte: int, tick: int) -> None:
+        super().transmit(byte, tick)
+        self.client._byte(byte, tick)
+
+
+class MavlinkClient:
+    def __init__(self, sim, uart: str = "USART3", member: str | None = None, *, system: int = 255,
+                 component: int = 190, heartbeat_hz: float = 1.0):
+        ml = _dialect()
+        self.ml, self.sim = ml, sim
+        self.endpoint = sim.connect_serial(uart, _ParsingEndpoint(self), member=member)
+        self.mav = ml.MAVLink(self, srcSystem=system, srcComponent=component)
+        self.mav.robust_parsing = True
+        self._rx = ml.MAVLink(None, srcSystem=system, srcComponent=component)
+        self._rx.robust_parsing = True
+        self.log: list[tuple[int, object]] = []
+        self.errors = 0
+        self._read = 0
+        self._hb_period = None
+        if heartbeat_hz:
+            self._hb_period = sim.timebase.ticks(1 / heartbeat_hz, rounding=True)
+            sim.kernel.at(max(1, sim.kernel.now), self._heartbeat, prio=PRIO_INPUT)
+
+    # --- file-like of pymavlink ----------------------------------------------------------------------
+    def write(self, buf) -> int:
+        self.endpoint.feed(bytes(buf))
+        return len(buf)
+
+    def _heartbeat(self) -> None:
+        if self._hb_period is None:
+            return
+        self.mav.heartbeat_send(MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self.sim.kernel.after(self._hb_period, self._heartbeat, prio=PRIO_INPUT)
+
+    def stop_heartbeat(self) -> None:
+        """The ground station goes away: no more heartbeats."""
+        self._hb_period = None
+
+    def _byte(self, byte: int, tick: int) -> None:
+        m = self._rx.parse_char(bytes([byte]))
+        while m is not None:
+            if m.get_type() == "BAD_DATA":
+                self.errors += 1
+            else:
+                self.log.append((tick, m))
+            m = self._rx.parse_char(b"")
+
+    # --- waits (simulated time) ----------------------------------------------------------------------
+    def messages(self, type: str | None = None) -> list:
+        """Every valid message received so far (of ``type``)."""
+        return [m for _, m in self.log if type is None or m.get_type() == type]
+
+    def flush(self) -> None:
+        """Forget the messages received so far: the next wait sees only newer ones."""
+        self._read = len(self.log)
+
+    def recv_match(self, type: str | None = None, condition=None, timeout="1s"):
+        """The next message not returned before (of ``type``, with ``condition(msg)`` true),
+        running the simulation up to ``timeout`` of simulated time for it."""
+        __tracebackhide__ = True
+        start = self.sim.kernel.now
+        end = start + self.sim.timebase.ticks(timeout, rounding=True)
+        found = []
+
+        def scan():
+            while self._read < len(self.log):
+                _, m = self.log[self._read]
+                self._read += 1
+                if (type is None or m.get_type() == type) and (condition is None or condition(m)):
+                    found.append(m)
+                    return True
+            return False
+
+        if not scan():
+            self.sim.run(until_tick=end, stop=scan)
+        if found:
+            return found[0]
+        raise SimTimeout(f"a MAVLink {type or 'message'}" + (" matching the condition" if condition else ""),
+                         timeout, self.sim.time_s, start / self.sim.timebase.base_hz)
+
+    def tick_of(self, msg) -> int:
+        """The base tick at which ``msg`` (one from ``log``) was received."""
+        for tick, m in self.log:
+            if m is msg:
+                return tick
+        raise ValueError("not a received message")

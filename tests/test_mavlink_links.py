@@ -1,0 +1,161 @@
+"""Host links of the MAVLink port (``mcusim run --mavlink``, :mod:`mcusim.hostudp`) and real-time
+pacing (``--realtime``, :mod:`mcusim.realtime`), with pymavlink's own connections as the host.
+
+The simulations here run in simulated time and the host side is polled, so nothing asserts a
+wall-clock rate; the pacing logic is checked against a scripted clock."""
+
+import io
+import os
+import select
+import subprocess
+import sys
+
+import pytest
+
+import mcusim
+from mcusim.cli import main
+from mcusim.errors import ConfigError
+from mcusim.hostudp import UdpEndpoint, parse_link
+from mcusim.realtime import run_realtime
+
+mavutil = pytest.importorskip("pymavlink.mavutil")
+
+
+def _run_until(sim, conn, kind, slices=300, step="10ms", condition=None):
+    """Run the simulation in slices until the host connection has a message of ``kind``."""
+    for _ in range(slices):
+        sim.run(seconds=step)
+        m = conn.recv_match(type=kind, blocking=False)
+        while m is not None:
+            if condition is None or condition(m):
+                return m
+            m = conn.recv_match(type=kind, blocking=False)
+    raise AssertionError(f"no {kind} reached the host")
+
+
+def test_udpout_reaches_a_pymavlink_udpin_listener_and_its_commands_come_back():
+    host = mavutil.mavlink_connection("udpin:127.0.0.1:0", source_system=255)
+    port = host.port.getsockname()[1]
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART3", UdpEndpoint("udpout", "127.0.0.1", port))
+    try:
+        hb = _run_until(sim, host, "HEARTBEAT")
+        assert (hb.type, hb.get_srcSystem(), hb.get_srcComponent()) == (10, 1, 1)
+        host.mav.command_long_send(1, 0, 400, 0, 0, 0, 0, 0, 0, 0, 0)     # disarm: always accepted
+        ack = _run_until(sim, host, "COMMAND_ACK")
+        assert (ack.command, ack.result) == (400, 0)
+        assert ep.injected and sim.firmware.link.rx_frames >= 1
+    finally:
+        ep.close()
+        host.close()
+        sim.close()
+
+
+def test_udpin_answers_the_peer_that_spoke_first_and_drops_output_until_then():
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART3", UdpEndpoint("udpin", "127.0.0.1", 0))
+    port = ep.address[1]
+    host = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=255)
+    try:
+        sim.run(seconds="0.05s")
+        assert ep.dropped > 0 and ep.peer is None          # the heartbeat at boot had nowhere to go
+        host.mav.heartbeat_send(6, 8, 0, 0, 0)              # a GCS heartbeat: the peer is known
+        host.mav.command_long_send(1, 1, 176, 0, 1, 0, 0, 0, 0, 0, 0)
+        ack = _run_until(sim, host, "COMMAND_ACK")
+        assert (ack.command, ack.result) == (176, 3)       # DO_SET_MODE: unsupported, still answered
+    finally:
+        ep.close()
+        host.close()
+        sim.close()
+
+
+@pytest.mark.parametrize("spec", ["udp:127.0.0.1:14550", "udpout:127.0.0.1", "udpout:127.0.0.1:0",
+                                  "udpout:127.0.0.1:70000", "serial", "tcp:127.0.0.1:5760", ""])
+def test_a_link_that_is_not_pty_udpout_or_udpin_is_refused_naming_the_forms(spec):
+    with pytest.raises(ConfigError, match="expected pty, udpout:HOST:PORT or udpin:HOST:PORT"):
+        parse_link(spec)
+
+
+def test_mavlink_on_a_board_without_a_mavlink_firmware_is_a_usage_error(capsys):
+    assert main(["run", "pro-mini", "--mavlink", "pty", "--duration", "1ms"]) == 2
+    err = capsys.readouterr().err
+    assert "pro-mini runs no firmware with a MAVLink link" in err and "Traceback" not in err
+    assert main(["run", "ciaa-edu", "--no-firmware", "--mavlink", "pty", "--duration", "1ms"]) == 2
+
+
+def test_a_udpin_port_already_taken_is_a_usage_error(capsys):
+    import socket
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    try:
+        port = s.getsockname()[1]
+        assert main(["run", "ciaa-edu", "--mavlink", f"udpin:127.0.0.1:{port}", "--duration", "1ms"]) == 2
+        assert "Address already in use" in capsys.readouterr().err
+    finally:
+        s.close()
+
+
+class _Clock:
+    """A scripted wall clock: ``per_slice`` wall seconds pass while the simulation runs a slice."""
+
+    def __init__(self, sim, wall_per_sim_s):
+        self.sim, self.k, self.t, self.slept = sim, wall_per_sim_s, 0.0, []
+
+    def __call__(self):
+        return self.sim.time_s * self.k + sum(self.slept)
+
+    def sleep(self, s):
+        self.slept.append(s)
+
+
+def test_realtime_sleeps_when_the_simulation_is_ahead_and_stays_in_step():
+    sim = mcusim.load("ciaa-edu")
+    clock = _Clock(sim, 0.25)                   # the simulation computes 4x faster than real time
+    pace = run_realtime(sim, "1s", clock=clock, sleep=clock.sleep, stream=io.StringIO())
+    assert sim.time_s == pytest.approx(1.0)
+    assert sum(clock.slept) == pytest.approx(0.75, abs=1e-9)     # the 0.75 s it was ahead
+    assert pace.max_lag_s == pytest.approx(0.0, abs=1e-9) and "kept pace" in pace.line()
+
+
+def test_realtime_reports_the_lag_when_the_simulation_is_slower_than_the_wall_clock():
+    sim = mcusim.load("ciaa-edu")
+    clock = _Clock(sim, 4.0)                    # 0.25x real time, as the rover on a slow host
+    out = io.StringIO()
+    pace = run_realtime(sim, "2s", clock=clock, sleep=clock.sleep, stream=out, report_every=1.0)
+    assert not clock.slept
+    assert pace.lag_s == pytest.approx(6.0) and pace.max_lag_s == pytest.approx(6.0)
+    assert "behind by 6.000 s" in pace.line() and "0.250x real time" in pace.line()
+    assert "s behind at simulated t =" in out.getvalue()
+
+
+def test_cli_pty_link_paced_in_real_time_gives_a_pymavlink_serial_client_the_heartbeat():
+    proc = subprocess.Popen([sys.executable, "-m", "mcusim", "run", "ciaa-edu", "--mavlink", "pty", "--realtime",
+                             "--duration", "30s", "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], 60)
+        assert ready, "no pty path printed"
+        line = proc.stdout.readline()
+        assert line.startswith("MAVLink: /dev/")
+        path = line.split()[1]
+        assert os.path.exists(path)
+        conn = mavutil.mavlink_connection(path, baud=57600, source_system=255)
+        hb = conn.wait_heartbeat(timeout=20)
+        assert hb is not None and hb.type == 10 and conn.target_system == 1
+        conn.mav.command_long_send(conn.target_system, conn.target_component, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+        ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=20)
+        assert ack is not None and (ack.command, ack.result) == (400, 2)   # bench: no modules, denied
+        conn.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+def test_with_a_mavlink_link_the_profiles_demo_command_is_not_applied(tmp_path):
+    """elementall's [run.set] drives at 0.5 m/s; with --mavlink the ground station commands."""
+    out = tmp_path / "s.json"
+    assert main(["run", "elementall", "--mavlink", "udpin:127.0.0.1:0", "--duration", "0.3s", "-q",
+                 "--summary", str(out)]) == 0
+    import json
+    s = json.loads(out.read_text())
+    assert s["pose"]["x"] == 0.0 and s["firmware"]["watchdog_tripped"] is False
