@@ -51,6 +51,13 @@ BATTERY_PARAMS = {"BATT_LOW_V": "low_v", "BATT_CRIT_V": "critical_v", "BATT_HYST
 PARAM_IDS = tuple(GAIN_PARAMS) + tuple(BATTERY_PARAMS)
 
 
+def message_id(param: float) -> int | None:
+    """A message id carried in a float command parameter: a whole, finite number, else None."""
+    if not math.isfinite(param) or param != math.floor(param):
+        return None
+    return int(param)
+
+
 class MavlinkLink:
     """The task's state and its handlers; ``rc`` is the RoverControl it serves."""
 
@@ -308,14 +315,14 @@ class MavlinkLink:
                 self.gcs_lost = False
             return RESULT_ACCEPTED
         if cmd == CMD_SET_INTERVAL:
-            mid, us = int(params[0]), params[1]
+            mid, us = message_id(params[0]), params[1]
             if mid not in STREAMS or not math.isfinite(us) or (us < 0 and us != -1):
                 return RESULT_DENIED
             self.intervals[mid] = STREAMS[mid] if us == 0 else (0 if us == -1 else max(1, round(us / 1000)))
             self.due[mid] = rc.rtos.tick_count
             return RESULT_ACCEPTED
         if cmd == CMD_REQUEST_MESSAGE:
-            mid = int(params[0]) if math.isfinite(params[0]) else -1
+            mid = message_id(params[0])
             if mid not in STREAMS:
                 return RESULT_DENIED
             self.once.append(mid)

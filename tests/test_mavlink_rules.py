@@ -1,0 +1,87 @@
+"""Rules of the MAVLink message definitions (pymavlink's generated ``common`` dialect: its enums and
+field docs) and of the C library's parser that the rover's link must keep, each pinned by a test;
+pymavlink is the ground station throughout."""
+
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from pymavlink.dialects.v20 import common as ml
+
+import mcusim
+from mcusim.fw.openrover_rcm.mavlink_task import MavlinkLink
+from mcusim.mavlink import MavlinkClient
+
+ARM_DISARM = ml.MAV_CMD_COMPONENT_ARM_DISARM
+
+
+def rover(**over):
+    sim = mcusim.load("elementall", overrides=over)
+    return sim, MavlinkClient(sim, "USART3", member="rcm")
+
+
+def armed_rover(**over):
+    sim, gcs = rover(**over)
+    sim.run(seconds="0.25s")
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
+    return sim, gcs
+
+
+# --- every field of every handled message may carry any value the wire can carry ----------------------
+HANDLED = sorted(getattr(ml, "MAVLINK_MSG_ID_" + n[3:].upper()) for n in dir(MavlinkLink) if n.startswith("on_"))
+SPECIAL_FLOATS = [math.nan, math.inf, -math.inf, 3.4028235e38, -3.4028235e38, 1e-45, -0.0, 0.5, 1.0, 511.0, 30.0]
+INT_RANGES = {"int8_t": (-128, 127), "uint8_t": (0, 255), "int16_t": (-32768, 32767), "uint16_t": (0, 65535),
+              "int32_t": (-(1 << 31), (1 << 31) - 1), "uint32_t": (0, (1 << 32) - 1),
+              "int64_t": (-(1 << 63), (1 << 63) - 1), "uint64_t": (0, (1 << 64) - 1)}
+
+
+def _scalar(kind):
+    if kind in ("float", "double"):
+        return st.sampled_from(SPECIAL_FLOATS) | st.floats(width=32)
+    lo, hi = INT_RANGES[kind]
+    return st.sampled_from([lo, hi, 0, 1]) | st.integers(lo, hi)
+
+
+@st.composite
+def handled_message(draw):
+    cls = ml.mavlink_map[draw(st.sampled_from(HANDLED))]
+    lengths = dict(zip(cls.ordered_fieldnames, cls.array_lengths))
+    args = []
+    for name, kind in zip(cls.fieldnames, cls.fieldtypes):
+        n = lengths[name]
+        if kind == "char":
+            args.append(draw(st.binary(max_size=n)))
+        elif name == "command":        # the commands the task handles, and any other
+            args.append(draw(st.sampled_from([400, 511, 512, 520]) | st.integers(0, 65535)))
+        elif n:
+            args.append(draw(st.lists(_scalar(kind), min_size=n, max_size=n)))
+        else:
+            args.append(draw(_scalar(kind)))
+    return cls(*args)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(handled_message(), min_size=1, max_size=12))
+def test_any_field_value_of_a_handled_message_leaves_the_controller_answering(msgs):
+    """NaN, +-inf and extreme values are valid on the wire in float fields (MAV_CMD_SET_MESSAGE_INTERVAL
+    param1 included): a command answers, it never stops the controller."""
+    sim, gcs = armed_rover()
+    for m in msgs:
+        gcs.mav.send(m)
+        sim.run(seconds="0.01s")
+    gcs.mav.command_long_send(1, 1, 31999, 0, 0, 0, 0, 0, 0, 0, 0)
+    ack = gcs.recv_match("COMMAND_ACK", condition=lambda a: a.command == 31999, timeout="0.2s")
+    assert ack.result == ml.MAV_RESULT_UNSUPPORTED
+
+
+@pytest.mark.parametrize("param1", [math.nan, math.inf, -math.inf, 30.5, 1e30])
+@pytest.mark.parametrize("command", [ml.MAV_CMD_SET_MESSAGE_INTERVAL, ml.MAV_CMD_REQUEST_MESSAGE])
+def test_a_message_id_param_that_is_not_a_whole_number_is_denied(command, param1):
+    """param1 of SET_MESSAGE_INTERVAL / REQUEST_MESSAGE is a message id: anything else is an invalid
+    parameter, MAV_RESULT_DENIED."""
+    sim, gcs = rover()
+    sim.run(seconds="0.05s")
+    gcs.mav.command_long_send(1, 1, command, 0, param1, 100000, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_DENIED
