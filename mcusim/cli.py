@@ -346,6 +346,10 @@ def cmd_run(args) -> int:
     if link is not None:
         from .hostudp import parse_link
         parse_link(link)
+        if scenario is not None and scenario.uses_mavlink:
+            raise ConfigError(f"--mavlink {link}: the scenario {scenario.path} sends or expects MAVLink, so its "
+                              "own ground station holds the MAVLink port; drop --mavlink, or the scenario's "
+                              "mavlink actions and expectations")
     duration = args.duration if args.duration is not None else (
         scenario.duration if scenario is not None else args.max_duration if link else args.default_duration)
     if duration > args.max_duration:

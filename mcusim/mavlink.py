@@ -51,6 +51,8 @@ def mavlink_port(sim) -> tuple:
 
 
 class _ParsingEndpoint(BufferEndpoint):
+    label = "a MAVLink ground station (mcusim.mavlink.MavlinkClient, e.g. a scenario's)"
+
     def __init__(self, client):
         super().__init__()
         self.client = client

@@ -126,6 +126,11 @@ class Simulation:
         if periph is None or not hasattr(periph, "connect"):
             uarts = [n for n, p in mcu.periph.items() if hasattr(p, "connect") and hasattr(p, "receive")]
             raise ConfigError(f"no UART {uart!r} on {mcu.name}; UARTs: {', '.join(uarts) or 'none'}")
+        held = getattr(periph, "endpoint", None)
+        if held is not None:        # one far end per line: a second would silently take it over
+            where = f"{uart} of {member}" if member else uart
+            raise ConfigError(f"{where} is already connected to {_endpoint_name(held)}: a UART line has "
+                              "one far end")
         if endpoint == "pty":
             endpoint = PtyEndpoint()
             self._closers.append(endpoint.close)
@@ -228,3 +233,12 @@ def load(board: str, firmware=True, overrides: dict | None = None, **kw) -> Simu
     on the board's Cortex-M core (``docs/firmware.md``).
     """
     return Simulation(board, firmware=firmware, overrides=overrides, **kw)
+
+
+def _endpoint_name(ep) -> str:
+    """What holds a UART, for a message: a pty path, a UDP link or the endpoint's ``label``."""
+    if getattr(ep, "path", None):
+        return f"the pty {ep.path}"
+    if getattr(ep, "mode", None) in ("udpin", "udpout"):
+        return f"the UDP link {ep.mode}:{ep.host}:{ep.port}"
+    return getattr(ep, "label", None) or f"a {type(ep).__name__}"

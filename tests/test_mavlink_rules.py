@@ -7,10 +7,10 @@ import math
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mcusim.fw.openrover_rcm.mavlink_task import MavlinkLink
 from pymavlink.dialects.v20 import common as ml
 
 import mcusim
-from mcusim.fw.openrover_rcm.mavlink_task import MavlinkLink
 from mcusim.mavlink import MavlinkClient
 
 ARM_DISARM = ml.MAV_CMD_COMPONENT_ARM_DISARM
@@ -85,3 +85,20 @@ def test_a_message_id_param_that_is_not_a_whole_number_is_denied(command, param1
     sim.run(seconds="0.05s")
     gcs.mav.command_long_send(1, 1, command, 0, param1, 100000, 0, 0, 0, 0, 0)
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_DENIED
+
+
+# --- one far end per UART ------------------------------------------------------------------------------
+def test_a_second_connection_to_the_mavlink_uart_is_refused_naming_what_holds_it():
+    from mcusim.errors import ConfigError
+    sim, gcs = rover()
+    with pytest.raises(ConfigError, match=r"USART3 of rcm is already connected to a MAVLink ground station"):
+        MavlinkClient(sim, "USART3", member="rcm")
+    sim.run(seconds="1.1s")                     # the first ground station still hears the rover
+    assert gcs.messages("HEARTBEAT")
+
+
+def test_cli_refuses_mavlink_with_a_scenario_that_talks_mavlink(capsys):
+    from mcusim.cli import main
+    assert main(["run", "elementall", "--mavlink", "udpout:127.0.0.1:14793", "--scenario", "mavlink_drive"]) == 2
+    err = capsys.readouterr().err
+    assert "sends or expects MAVLink" in err and "Traceback" not in err

@@ -145,6 +145,12 @@ class Scenario(Checker):
             raise self._err(self._line("at", i), f"{where}: no action (one or more of {', '.join(ACTIONS)})")
         return _Step(i, t, self._line("at", i, "time"), actions)
 
+    @property
+    def uses_mavlink(self) -> bool:
+        """Whether the scenario sends or expects MAVLink (it then holds the MAVLink UART)."""
+        return (any(name == "mavlink" for step in self.steps for name, _, _ in step.actions)
+                or any(isinstance(e, MavlinkExpect) for e in self.expects))
+
     # --- duration ---------------------------------------------------------------------------------
     @property
     def duration(self) -> Fraction:
