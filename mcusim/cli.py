@@ -378,13 +378,14 @@ def cmd_run(args) -> int:
         vcd = sim.trace_vcd(files["vcd"].target, sample=args.vcd_sample) if "vcd" in files else None
         csv = (sim.trace_csv(files["csv"].target if "csv" in files else None, sample=args.sample,
                              keep=bool(args.plot)) if ("csv" in files or "plot" in files) else None)
-        pace = None
+        pace = endpoint = None
         if link is not None:
-            _attach_mavlink(sim, link)
+            endpoint = _attach_mavlink(sim, link)
         try:
             if getattr(args, "realtime", False):
                 from .realtime import run_realtime
-                pace = run_realtime(sim, duration)
+                note = None if endpoint is None else (lambda: _link_line(endpoint))
+                pace = run_realtime(sim, duration, note=note)
             else:
                 run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
         except McusimError as exc:      # a fault found during the run: say when
@@ -394,6 +395,8 @@ def cmd_run(args) -> int:
         s = sim.summary()
         if scenario is not None:
             s.update(scenario.report_entries())
+        if endpoint is not None:
+            s["link"] = {"rx_dropped": endpoint.rx_dropped, "tx_dropped": endpoint.dropped}
         if vcd is not None and "gtkw" in files:
             from .trace import write_gtkw
             write_gtkw(vcd, files["gtkw"].target, dumpfile=args.vcd, savefile=args.vcd and
@@ -417,6 +420,8 @@ def cmd_run(args) -> int:
         _print_summary(s)
         if pace is not None:
             print(pace.line())
+        if endpoint is not None:
+            print(_link_line(endpoint))
         if scenario is not None:
             for line in scenario.format_results():
                 print(line)
@@ -451,6 +456,12 @@ def _attach_mavlink(sim, spec: str) -> None:
     sim._closers.append(endpoint.close)
     sim.connect_serial(uart, endpoint, member=member)
     print(f"MAVLink: {describe(endpoint)}", flush=True)
+    return endpoint
+
+
+def _link_line(endpoint) -> str:
+    return (f"MAVLink link: {endpoint.rx_dropped} bytes from the host dropped (more than {endpoint.rx_buffer} "
+            f"waiting for the USART), {endpoint.dropped} bytes to the host dropped")
 
 
 def cmd_trace(args) -> int:

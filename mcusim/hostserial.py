@@ -32,6 +32,24 @@ import select
 from .errors import McusimError
 from .kernel import PRIO_INPUT
 
+RX_BUFFER = 1024     # bytes a host end holds for the USART's RX line; the rest is dropped
+
+
+def inject(endpoint, data: bytes) -> None:
+    """Host -> MCU bytes from a live host end (pty, UDP): what fits in ``endpoint.rx_buffer``
+    beside the bytes still waiting on the RX line is put on the line; the rest is dropped and
+    counted in ``endpoint.rx_dropped``. This is the receive buffer of a serial bridge or of a tty
+    driver: a host that sends faster than the line carries (a simulation slower than real time)
+    loses bytes instead of piling up seconds of delay."""
+    usart = endpoint.usart
+    room = max(0, endpoint.rx_buffer - getattr(usart, "rx_pending", 0))
+    if len(data) > room:
+        endpoint.rx_dropped += len(data) - room
+        data = data[:room]
+    if data:
+        endpoint.injected.append((usart.kernel.now, data))
+        usart.receive(data)
+
 
 class BufferEndpoint:
     """In-memory endpoint: ``sent`` collects what the MCU transmitted, ``feed`` injects bytes."""
@@ -70,12 +88,15 @@ class PtyEndpoint:
     unchanged). ``poll`` is the simulated interval between reads of the host's input, in base ticks
     (int) or a duration string ("1ms", rounded to the nearest base tick); default 1 ms. The baud rate
     the host program sets on the pty is ignored: bytes take the USART's frame time on the RX line.
+    At most ``rx_buffer`` bytes wait for the RX line; what the host writes beyond that is dropped and
+    counted in ``rx_dropped`` (see :func:`inject`).
     """
 
-    def __init__(self, poll="1ms", chunk: int = 4096, max_backlog: int = 1 << 20):
+    def __init__(self, poll="1ms", chunk: int = 4096, max_backlog: int = 1 << 20, rx_buffer: int = RX_BUFFER):
         import tty
 
-        self.poll_spec, self.chunk, self.max_backlog = poll, chunk, max_backlog
+        self.poll_spec, self.chunk, self.max_backlog, self.rx_buffer = poll, chunk, max_backlog, rx_buffer
+        self.rx_dropped = 0                            # host -> MCU bytes lost: the RX buffer was full
         self.master, self.slave = os.openpty()
         tty.setraw(self.master)
         tty.setraw(self.slave)   # kept open, so the master never sees a hang-up between host sessions
@@ -146,8 +167,7 @@ class PtyEndpoint:
         self._flush()
         data = self._read()
         if data:
-            self.injected.append((self.usart.kernel.now, data))
-            self.usart.receive(data)
+            inject(self, data)
         self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
 
     def wait_input(self, timeout: float) -> bool:

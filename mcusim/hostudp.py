@@ -13,7 +13,10 @@ therefore be split across datagrams; ground stations and pymavlink parse UDP lin
   goes out, and ``dropped`` counts the bytes, until a peer has spoken).
 
 Sockets are non-blocking: the simulation never waits for the host. A datagram the host's stack
-refuses (no listener: ECONNREFUSED, a full buffer) is dropped and counted in ``dropped``.
+refuses (no listener: ECONNREFUSED, a full buffer) is dropped and counted in ``dropped``. Like the
+bridge's own buffer, at most ``rx_buffer`` bytes (1024) wait for the USART's RX line; received
+bytes beyond that are dropped and counted in ``rx_dropped`` (a host that sends faster than the
+simulated line carries, e.g. when the simulation runs slower than real time).
 Determinism: as for :class:`mcusim.hostserial.PtyEndpoint`, what arrives when depends on the host;
 ``injected`` logs every ``(tick, bytes)`` handed to the USART, and replaying it with
 ``BufferEndpoint.feed_at`` reproduces the run.
@@ -24,13 +27,14 @@ from __future__ import annotations
 import socket
 
 from .errors import ConfigError
+from .hostserial import RX_BUFFER, inject
 from .kernel import PRIO_INPUT
 
 MAX_DATAGRAM = 65507
 
 
 class UdpEndpoint:
-    def __init__(self, mode: str, host: str, port: int, poll="1ms"):
+    def __init__(self, mode: str, host: str, port: int, poll="1ms", rx_buffer: int = RX_BUFFER):
         if mode not in ("udpin", "udpout"):
             raise ConfigError(f"UDP link mode {mode!r}: expected udpin or udpout")
         self.mode, self.host, self.port, self.poll_spec = mode, host, port, poll
@@ -52,6 +56,7 @@ class UdpEndpoint:
         self._ev = None
         self._out = bytearray()
         self.dropped = 0
+        self.rx_buffer, self.rx_dropped = rx_buffer, 0
         self.injected: list[tuple[int, bytes]] = []
         self.closed = False
 
@@ -111,8 +116,7 @@ class UdpEndpoint:
         self._flush()
         data = self._receive()
         if data:
-            self.injected.append((self.usart.kernel.now, data))
-            self.usart.receive(data)
+            inject(self, data)
         self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
 
     def close(self) -> None:

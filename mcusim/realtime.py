@@ -4,7 +4,8 @@ The run is cut into slices of ``step`` simulated time (10 ms by default; the eve
 depend on where a run pauses). After each slice, if simulated time is ahead of the wall clock
 since the start, the host sleeps the difference; if it is behind (the simulation is slower than
 real time), it does not sleep, and the lag (wall minus simulated time) is reported: every
-``report_every`` wall seconds on ``stream`` while it exceeds ``warn_lag``, and in the result.
+``report_every`` wall seconds on ``stream`` while it exceeds ``warn_lag`` (followed by ``note()``, e.g.
+the host link's dropped bytes), and in the result.
 Nothing here decides what happens inside the simulation: pacing only stretches the wall time.
 """
 
@@ -36,7 +37,7 @@ class Pacing:
 
 
 def run_realtime(sim, duration, *, step="10ms", stream=None, report_every: float = 5.0,
-                 warn_lag: float = 0.25, clock=time.monotonic, sleep=time.sleep) -> Pacing:
+                 warn_lag: float = 0.25, clock=time.monotonic, sleep=time.sleep, note=None) -> Pacing:
     stream = sys.stderr if stream is None else stream
     start = sim.kernel.now
     end = start + sim.timebase.ticks(duration, rounding=True)
@@ -59,5 +60,7 @@ def run_realtime(sim, duration, *, step="10ms", stream=None, report_every: float
             last_report = now
             stream.write(f"mcusim: real time: {pace.lag_s:.2f} s behind at simulated t = "
                          f"{sim.kernel.now / hz:.2f} s ({pace.simulated_s / pace.wall_s:.3f}x real time)\n")
+            if note is not None:
+                stream.write(f"mcusim: {note()}\n")
             stream.flush()
     return pace

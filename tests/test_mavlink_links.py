@@ -159,3 +159,34 @@ def test_with_a_mavlink_link_the_profiles_demo_command_is_not_applied(tmp_path):
     import json
     s = json.loads(out.read_text())
     assert s["pose"]["x"] == 0.0 and s["firmware"]["watchdog_tripped"] is False
+
+
+def test_a_host_that_outpaces_the_line_loses_bytes_beyond_the_rx_buffer_not_seconds_of_latency():
+    """A serial bridge's receive buffer is finite: a burst larger than ``rx_buffer`` puts at most that
+    many bytes on the USART's RX line, counts the rest in ``rx_dropped``, and the last reply comes
+    within the buffer's line time (1024 bytes x 10 bits at 57600 baud) instead of behind the burst."""
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART3", UdpEndpoint("udpin", "127.0.0.1", 0))
+    host = mavutil.mavlink_connection(f"udpout:127.0.0.1:{ep.address[1]}", source_system=255)
+    try:
+        sim.run(seconds="0.01s")
+        sent = 0
+        for n in range(200):                    # 8 kB at once: 1.4 s of line time at 57600 baud
+            msg = host.mav.command_long_encode(1, 1, 31000 + n, 0, 0, 0, 0, 0, 0, 0, 0)
+            buf = msg.pack(host.mav)
+            host.write(buf)
+            sent += len(buf)
+        start = sim.kernel.now
+        sim.run(seconds=1024 * 10 / 57600 + 0.05)
+        taken = sum(len(d) for _, d in ep.injected)
+        assert taken <= ep.rx_buffer == 1024 and ep.rx_dropped == sent - taken
+        assert ep.usart.rx_pending == 0        # everything taken has been received by now
+        acks = []
+        while (m := host.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.2)) is not None:
+            acks.append(m.command)              # (the host waits for datagrams already sent)
+        assert acks == [31000 + n for n in range(taken // len(buf))]   # the whole frames that got in
+        assert sim.kernel.now - start <= sim.timebase.ticks("0.25s")
+    finally:
+        ep.close()
+        host.close()
+        sim.close()

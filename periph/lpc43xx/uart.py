@@ -358,6 +358,12 @@ class Usart(Peripheral):
             self._update_irq()
 
     # --- receiver ----------------------------------------------------------------------------------
+    @property
+    def rx_pending(self) -> int:
+        """Bytes handed to ``receive`` whose frames have not yet ended on the RX line (the far end's
+        backlog: a host end that must not fall behind caps it)."""
+        return len(self._line)
+
     def receive(self, data: bytes) -> None:
         """Bytes from the far end arrive on the RX line, one frame each, from now on."""
         data = bytes(data)
