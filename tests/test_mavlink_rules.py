@@ -102,3 +102,22 @@ def test_cli_refuses_mavlink_with_a_scenario_that_talks_mavlink(capsys):
     assert main(["run", "elementall", "--mavlink", "udpout:127.0.0.1:14793", "--scenario", "mavlink_drive"]) == 2
     err = capsys.readouterr().err
     assert "sends or expects MAVLink" in err and "Traceback" not in err
+
+
+# --- the parser ------------------------------------------------------------------------------------------
+def test_a_valid_frame_of_an_id_outside_the_dialect_is_dropped_whole_and_holds_up_nothing():
+    """mavlink_parse_char drops a frame whose id it does not know as a whole (its CRC_EXTRA is
+    unknown): an ardupilotmega MEMINFO whose payload holds 0xFD and a large byte must not make the
+    parser wait for a phantom frame, nor count as a link error."""
+    from pymavlink.dialects.v20 import ardupilotmega as apm
+    sim, gcs = rover()
+    sim.run(seconds="0.05s")
+    meminfo = apm.MAVLink_meminfo_message(0xFFFD, 0).pack(apm.MAVLink(None, 255, 190))
+    assert meminfo[10:12] == b"\xfd\xff"       # the payload: a start byte and a length of 255
+    assert ml.mavlink_map.get(apm.MAVLINK_MSG_ID_MEMINFO) is None
+    link = sim.firmware.link
+    gcs.endpoint.feed(meminfo)
+    gcs.mav.command_long_send(1, 1, 31999, 0, 0, 0, 0, 0, 0, 0, 0)
+    line_time = (len(meminfo) + 41) * 10 / 57600
+    ack = gcs.recv_match("COMMAND_ACK", condition=lambda a: a.command == 31999, timeout=line_time + 0.02)
+    assert ack and link.rx_errors == 0 and link.ignored == 1

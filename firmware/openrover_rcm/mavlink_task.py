@@ -11,11 +11,13 @@ what is due. System 1, component 1 (MAV_COMP_ID_AUTOPILOT1), MAV_TYPE_GROUND_ROV
 MAV_AUTOPILOT_GENERIC. Streams and their default intervals are in ``STREAMS`` (changed by
 MAV_CMD_SET_MESSAGE_INTERVAL, sent once by MAV_CMD_REQUEST_MESSAGE).
 
-Bytes that are not a valid frame (garbage, a bad CRC, a truncated frame, an unknown message id)
-are counted in ``rx_errors`` and skipped (a frame of an id outside the dialect counts as invalid:
-without its CRC_EXTRA its checksum cannot be verified). Unlike ``mavlink_parse_char``, which drops every byte of
-a frame whose CRC fails, the task rescans such a frame from its second byte: a start byte in
-garbage followed by a large length byte would otherwise swallow the valid frames behind it.
+Bytes that are not a valid frame (garbage, a bad CRC, a truncated frame) are counted in
+``rx_errors`` and skipped. Unlike ``mavlink_parse_char``, which drops every byte of a frame whose
+CRC fails, the task rescans such a frame from its second byte: a start byte in garbage followed by
+a large length byte would otherwise swallow the valid frames behind it. A frame of an id outside
+the dialect (a GCS speaking ``ardupilotmega``) cannot have its CRC checked (no CRC_EXTRA); like
+``mavlink_parse_char`` the task drops it whole, counted in ``ignored``, when a start byte follows
+it (the sender's next frame), and treats it as garbage to rescan otherwise.
 
 Transmit: a message is written only if the serial transmit buffer has room for the whole frame
 (``poll(POLLOUT)``); otherwise it is skipped and counted in ``tx_skipped`` (the sequence number
@@ -41,6 +43,7 @@ CAPS = 2 | 128 | 8192     # PARAM_FLOAT | SET_POSITION_TARGET_LOCAL_NED | MAVLIN
 FRAME_LOCAL_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 8, 9, 12
 IGNORE_VX, IGNORE_VY, IGNORE_YAW_RATE = 8, 16, 2048
 AXIS_INVALID = 0x7FFF
+START_BYTES = (0xFD, 0xFE)                 # MAVLink 2, MAVLink 1
 
 # message id -> default interval in ms (0: only on request)
 STREAMS = {0: 1000, 1: 1000, 147: 1000, 32: 100, 30: 100, 251: 200, 148: 0}
@@ -85,6 +88,7 @@ class MavlinkLink:
         self._cost = 0
         self.rx_frames = self.rx_errors = self.tx_frames = self.tx_skipped = self.ignored = 0
         self.last_busy = (0, 0)                 # (tick, cpu busy ticks) for the load figure
+        self._unknown = None                    # an unknown-id frame waiting for the byte after it
 
     # --- file-like for pymavlink: write() is the serial device's write() -----------------------------
     def write(self, buf) -> int:
@@ -127,26 +131,45 @@ class MavlinkLink:
     def parse(self, data: bytes) -> list:
         """Valid messages in ``data``, with every invalid stretch counted and rescanned."""
         out = []
+        if self._unknown is not None and data:          # the byte after an unknown-id frame has come
+            frame, self._unknown = self._unknown, None
+            if data[0] in START_BYTES:
+                self.ignored += 1
+            else:
+                self.rx_errors += 1
+                data = frame[1:] + data
         queue = self._parse_buffer(data)
         i = 0
         while i < len(queue):
             m = queue[i]
-            if m.get_type().startswith("UNKNOWN_"):   # an id outside the dialect: no CRC_EXTRA to check it
-                m = self.ml.MAVLink_bad_data(m.get_msgbuf(), "unknown message id")
+            if m.get_type().startswith("UNKNOWN_"):     # an id outside the dialect: its CRC cannot be checked
+                tail = self._tail(queue[i + 1:])
+                if not tail:                            # decide when the next byte comes
+                    self._unknown = bytes(m.get_msgbuf())
+                    i += 1
+                    continue
+                if tail[0] in START_BYTES:              # another frame follows: skip this one whole
+                    self.ignored += 1
+                    i += 1
+                    continue
+                m = self.ml.MAVLink_bad_data(m.get_msgbuf(), "unknown message id, no frame after it")
             if m.get_type() != "BAD_DATA":
                 self.rx_frames += 1
                 out.append(m)
             else:
                 self.rx_errors += 1
                 if m.reason != "Bad prefix" and len(m.data) > 1:
-                    tail = b"".join(bytes(x.data) if x.get_type() == "BAD_DATA" else bytes(x.get_msgbuf())
-                                    for x in queue[i + 1:])
-                    tail += bytes(self.mav.buf[self.mav.buf_index:])
+                    tail = self._tail(queue[i + 1:])
                     self.mav.buf, self.mav.buf_index = bytearray(), 0
                     self.mav.expected_length = self.ml.HEADER_LEN_V1 + 2
                     queue = queue[: i + 1] + self._parse_buffer(bytes(m.data[1:]) + tail)
             i += 1
         return out
+
+    def _tail(self, rest: list) -> bytes:
+        """The bytes after a frame: the messages parsed behind it and what the parser still holds."""
+        tail = b"".join(bytes(x.data) if x.get_type() == "BAD_DATA" else bytes(x.get_msgbuf()) for x in rest)
+        return tail + bytes(self.mav.buf[self.mav.buf_index:])
 
     def _parse_buffer(self, data: bytes) -> list:
         try:
@@ -437,4 +460,5 @@ class MavlinkLink:
 
     def summary(self) -> dict:
         return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
-                "tx_frames": self.tx_frames, "tx_skipped": self.tx_skipped, "gcs_lost": self.gcs_lost}
+                "tx_frames": self.tx_frames, "tx_skipped": self.tx_skipped, "ignored": self.ignored,
+                "gcs_lost": self.gcs_lost}
