@@ -184,8 +184,9 @@ def test_param_set_of_a_wheel_gain_reaches_the_kp_register_of_every_module_and_i
     for m in modules:                          # the KP register each module serves over I2C
         img = m.register_image()
         assert P.decode("KP", img[P.BY_NAME["KP"].addr:]) == 0.03125
-    gcs.mav.param_set_send(1, 0, b"WHL_KI", -1.0, 9)       # PID_v1 SetTunings ignores negative gains
-    assert gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value == pytest.approx(before_ki(modules))
+    for bad in (-1.0, 3.4e38, math.nan):            # outside the modules' 0..1e4: refused, echoed unchanged
+        gcs.mav.param_set_send(1, 0, b"WHL_KI", bad, 9)
+        assert gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value == pytest.approx(before_ki(modules))
 
 
 def before_ki(modules):

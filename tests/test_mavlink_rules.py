@@ -121,3 +121,24 @@ def test_a_valid_frame_of_an_id_outside_the_dialect_is_dropped_whole_and_holds_u
     line_time = (len(meminfo) + 41) * 10 / 57600
     ack = gcs.recv_match("COMMAND_ACK", condition=lambda a: a.command == 31999, timeout=line_time + 0.02)
     assert ack and link.rx_errors == 0 and link.ignored == 1
+
+
+def test_param_set_of_a_gain_one_module_did_not_take_is_not_echoed_as_taken():
+    """The PARAM_VALUE echo of PARAM_SET is the acknowledgement (PARAM_SET's definition): with mcm3 off
+    the bus the new gain is not held by every module, so the echo is NaN, not the value asked for,
+    and a STATUSTEXT names the module."""
+    sim, gcs = rover()
+    sim.run(seconds="0.25s")
+    assert sim.members["mcm3"]["firmware"].p["i2c_address"] == 0x0A
+    mcm3 = next(p for p in sim.members["mcm3"]["mcu"].periph.values() if hasattr(p, "i2c_address"))
+    mcm3.bus.detach(mcm3)
+    gcs.mav.param_set_send(1, 0, b"WHL_KP", 0.03125, ml.MAV_PARAM_TYPE_REAL32)
+    echo = gcs.recv_match("PARAM_VALUE", timeout="0.1s")
+    assert echo.param_id == "WHL_KP" and math.isnan(echo.param_value)
+    text = gcs.recv_match("STATUSTEXT", timeout="0.05s")
+    assert text.severity == ml.MAV_SEVERITY_WARNING and text.text == "WHL_KP not written to 0x0a"
+    mcm3.bus.attach(mcm3)                            # back: the others hold 0.03125, mcm3 its old gain
+    gcs.mav.param_request_read_send(1, 0, b"WHL_KP", -1)
+    assert math.isnan(gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value)
+    gcs.mav.param_set_send(1, 0, b"WHL_KP", 0.03125, ml.MAV_PARAM_TYPE_REAL32)
+    assert gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value == 0.03125

@@ -50,6 +50,7 @@ STREAMS = {0: 1000, 1: 1000, 147: 1000, 32: 100, 30: 100, 251: 200, 148: 0}
 STREAM_NAMES = {0: "HEARTBEAT", 1: "SYS_STATUS", 147: "BATTERY_STATUS", 32: "LOCAL_POSITION_NED",
                 30: "ATTITUDE", 251: "NAMED_VALUE_FLOAT", 148: "AUTOPILOT_VERSION"}
 GAIN_PARAMS = {"WHL_KP": "KP", "WHL_KI": "KI", "WHL_KD": "KD"}
+GAIN_MAX = 1e4                             # the modules' own range for kp, ki, kd
 BATTERY_PARAMS = {"BATT_LOW_V": "low_v", "BATT_CRIT_V": "critical_v", "BATT_HYST_V": "hysteresis_v"}
 PARAM_IDS = tuple(GAIN_PARAMS) + tuple(BATTERY_PARAMS)
 
@@ -415,10 +416,16 @@ class MavlinkLink:
             return
         name, v = PARAM_IDS[idx], float(m.param_value)
         if name in GAIN_PARAMS:
-            if self.rc.motors_enabled and math.isfinite(v) and v >= 0:
+            if self.rc.motors_enabled and 0 <= v <= GAIN_MAX:      # refused values are echoed unchanged
+                failed = []
                 for addr in self.rc.modules:
-                    await self.rc._write_reg(addr, GAIN_PARAMS[name], v)
+                    if await self.rc._write_reg(addr, GAIN_PARAMS[name], v) != 0:
+                        failed.append(addr)
                 self.gains = None            # read back what the modules took
+                if failed:
+                    self.event(SEV_WARNING, f"{name} not written to " + " ".join(f"{a:#04x}" for a in failed))
+                elif math.isnan(await self.param_value(idx)):
+                    self.event(SEV_WARNING, f"{name}: the modules do not all hold the same value")
         elif math.isfinite(v) and 0 <= v <= 100:
             key = BATTERY_PARAMS[name]
             trial = {**self.p, key: v}
@@ -431,18 +438,25 @@ class MavlinkLink:
         pid = pid.split("\x00")[0]
         return PARAM_IDS.index(pid) if pid in PARAM_IDS else None
 
-    async def read_gains(self) -> None:
-        if self.gains is None and self.rc.motors_enabled:
-            addr = self.rc.modules[0]
-            got = [await self.rc._read_reg(addr, reg) for reg in ("KP", "KI", "KD")]
-            if None not in got:
-                self.gains = tuple(got)
+    async def read_gains(self) -> tuple:
+        """(KP, KI, KD) as every module holds them, NaN where a module does not answer or they
+        differ; cached once they agree, until the next PARAM_SET of a gain."""
+        if self.gains is not None:
+            return self.gains
+        if not self.rc.motors_enabled:
+            return (math.nan,) * 3
+        gains = []
+        for reg in ("KP", "KI", "KD"):
+            got = [await self.rc._read_reg(addr, reg) for addr in self.rc.modules]
+            gains.append(got[0] if None not in got and len(set(got)) == 1 else math.nan)
+        if not any(math.isnan(g) for g in gains):
+            self.gains = tuple(gains)
+        return tuple(gains)
 
     async def param_value(self, idx: int) -> float:
         name = PARAM_IDS[idx]
         if name in GAIN_PARAMS:
-            await self.read_gains()
-            return math.nan if self.gains is None else self.gains[list(GAIN_PARAMS).index(name)]
+            return (await self.read_gains())[list(GAIN_PARAMS).index(name)]
         return float(self.p[BATTERY_PARAMS[name]])
 
     async def send_param(self, idx: int) -> bool:
