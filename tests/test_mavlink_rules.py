@@ -16,13 +16,13 @@ from mcusim.mavlink import MavlinkClient
 ARM_DISARM = ml.MAV_CMD_COMPONENT_ARM_DISARM
 
 
-def rover(**over):
+def rover(heartbeat_hz=1, **over):
     sim = mcusim.load("elementall", overrides=over)
-    return sim, MavlinkClient(sim, "USART3", member="rcm")
+    return sim, MavlinkClient(sim, "USART3", member="rcm", heartbeat_hz=heartbeat_hz)
 
 
-def armed_rover(**over):
-    sim, gcs = rover(**over)
+def armed_rover(heartbeat_hz=1, **over):
+    sim, gcs = rover(heartbeat_hz, **over)
     sim.run(seconds="0.25s")
     gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
@@ -142,3 +142,55 @@ def test_param_set_of_a_gain_one_module_did_not_take_is_not_echoed_as_taken():
     assert math.isnan(gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value)
     gcs.mav.param_set_send(1, 0, b"WHL_KP", 0.03125, ml.MAV_PARAM_TYPE_REAL32)
     assert gcs.recv_match("PARAM_VALUE", timeout="0.1s").param_value == 0.03125
+
+
+# --- failsafes ------------------------------------------------------------------------------------------
+def test_arming_while_the_ground_station_heartbeat_is_lost_is_temporarily_rejected_until_it_returns():
+    """An ACCEPTED arm must hold; while the GCS heartbeat is lost the failsafe would undo it, so the
+    answer is MAV_RESULT_TEMPORARILY_REJECTED, and a heartbeat that comes back allows arming."""
+    sim = mcusim.load("elementall", overrides={"rcm.firmware.gcs_timeout_ms": 100})
+    gcs = MavlinkClient(sim, "USART3", member="rcm", heartbeat_hz=20)
+    sim.run(seconds="0.25s")
+    gcs.stop_heartbeat()
+    sim.run(seconds="0.2s")
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    gcs.mav.heartbeat_send(ml.MAV_TYPE_GCS, ml.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
+    sim.run(seconds="0.05s")
+    assert sim.firmware.link.armed
+
+
+def test_only_a_gcs_or_onboard_controller_heartbeat_keeps_the_link_alive():
+    """MAV_TYPE_GCS (QGroundControl) and MAV_TYPE_ONBOARD_CONTROLLER (mavros) are what the rover
+    watches; another vehicle's heartbeat on a shared UDP network does not keep it from stopping."""
+    sim, gcs = armed_rover(20, **{"rcm.firmware.gcs_timeout_ms": 100})
+    gcs.stop_heartbeat()
+    for _ in range(10):                                  # a rover, system 2, at 20 Hz
+        gcs.mav.srcSystem, gcs.mav.srcComponent = 2, 1
+        gcs.mav.heartbeat_send(ml.MAV_TYPE_GROUND_ROVER, ml.MAV_AUTOPILOT_GENERIC, 0, 0, 0)
+        gcs.mav.srcSystem, gcs.mav.srcComponent = 255, 190
+        sim.run(seconds="0.05s")
+    assert not sim.firmware.link.armed and sim.firmware.link.gcs_lost
+    sim2, gcs2 = armed_rover(20, **{"rcm.firmware.gcs_timeout_ms": 100})
+    gcs2.stop_heartbeat()
+    for _ in range(10):                                  # mavros: 1.191, ONBOARD_CONTROLLER
+        gcs2.mav.srcSystem, gcs2.mav.srcComponent = 1, 191
+        gcs2.mav.heartbeat_send(ml.MAV_TYPE_ONBOARD_CONTROLLER, ml.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        sim2.run(seconds="0.05s")
+    assert sim2.firmware.link.armed and not sim2.firmware.link.gcs_lost
+
+
+def test_disarming_stops_the_rover_without_a_watchdog_warning():
+    """A disarm is not a command that stopped coming: no 'watchdog' STATUSTEXT follows it."""
+    sim, gcs = armed_rover()
+    gcs.mav.set_position_target_local_ned_send(0, 1, 0, ml.MAV_FRAME_BODY_NED, 0x05C7,
+                                               0, 0, 0, 0.3, 0, 0, 0, 0, 0, 0, 0)
+    sim.run(seconds="0.05s")
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
+    sim.run(seconds="0.7s")
+    fw = sim.firmware
+    assert fw.command_target() == (0.0, 0.0, 0.0) and not fw.watchdog_tripped
+    assert not [m for m in gcs.messages("STATUSTEXT") if m.text.startswith("watchdog")]

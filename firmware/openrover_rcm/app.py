@@ -452,6 +452,10 @@ class RoverControl:
         self.cmd_id = cmd_id
         self.cmd_tick = self.rtos.tick_count
 
+    def cmd_vel_clear(self, cmd_id: int) -> None:
+        """Empty the mailbox: stop, with no command for the watchdog to watch (a disarm)."""
+        self.cmd, self.cmd_id, self.cmd_tick = (0.0, 0.0, 0.0), cmd_id, None
+
     # --- host side (not firmware) ------------------------------------------------------------------
     def check_input(self, name: str, value):
         """``value`` for host input ``name`` converted to its type, or ConfigError."""

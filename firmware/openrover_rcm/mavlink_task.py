@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 
 MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC = 10, 0
+MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER = 6, 18
 MODE_CUSTOM, MODE_GUIDED, MODE_ARMED = 1, 8, 128
 STATE_BOOT, STATE_STANDBY, STATE_ACTIVE, STATE_CRITICAL, STATE_EMERGENCY = 1, 3, 4, 5, 6
 SEV_CRITICAL, SEV_ERROR, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 3, 4, 5, 6
@@ -271,8 +272,12 @@ class MavlinkLink:
         self.wake.fire()
 
     # --- failsafes -------------------------------------------------------------------------------------
+    def gcs_silent(self, now: int) -> bool:
+        """A ground station has been heard and its heartbeat is overdue."""
+        return self.gcs_tick is not None and now - self.gcs_tick > self._ticks(self.p["gcs_timeout_ms"])
+
     def check_gcs(self, now: int) -> None:
-        lost = self.gcs_tick is not None and now - self.gcs_tick > self._ticks(self.p["gcs_timeout_ms"])
+        lost = self.gcs_silent(now)
         if lost and not self.gcs_lost:
             self.event(SEV_WARNING, f"GCS heartbeat lost for {self.p['gcs_timeout_ms']} ms: stopping")
             self.disarm()
@@ -280,8 +285,9 @@ class MavlinkLink:
 
     def disarm(self) -> None:
         if self.armed:
-            self.armed = False
-            self._command(0.0, 0.0, 0.0)
+            self.armed, self._cmd_key = False, None
+            self._next_cmd_id -= 1
+            self.rc.cmd_vel_clear(self._next_cmd_id)     # stop, without starting the watchdog
 
     def _command(self, vx: float, vy: float, wz: float) -> None:
         """A velocity command into the controller's mailbox; a changed value is a new command."""
@@ -303,9 +309,12 @@ class MavlinkLink:
         await handler(m)
 
     async def on_heartbeat(self, m) -> None:
-        # a ground station (QGC: 255.190) or a companion computer (mavros: 1.191), not ourselves
-        if (m.get_srcSystem(), m.get_srcComponent()) != (1, 1):
+        # a ground station (QGC: MAV_TYPE_GCS, 255.190) or a companion computer (mavros:
+        # MAV_TYPE_ONBOARD_CONTROLLER, 1.191), not ourselves; another vehicle's does not count
+        if m.type in (MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER) and (m.get_srcSystem(), m.get_srcComponent()) != (1, 1):
             self.gcs_tick = self.rc.rtos.tick_count
+        else:
+            self.ignored += 1
 
     async def on_command_long(self, m) -> None:
         if not self._for_me(m.target_system, m.target_component):
@@ -330,13 +339,12 @@ class MavlinkLink:
                 return RESULT_ACCEPTED
             if params[0] != 1.0:
                 return RESULT_DENIED
-            if rc.estop_pressed:
+            if rc.estop_pressed or self.gcs_silent(rc.rtos.tick_count):   # until it heartbeats again
                 return RESULT_TEMP_REJECTED
             if rc.battery_state == "critical" or not rc.motors_enabled:
                 return RESULT_DENIED
             if not self.armed:
                 self.armed, self._cmd_key = True, None
-                self.gcs_lost = False
             return RESULT_ACCEPTED
         if cmd == CMD_SET_INTERVAL:
             mid, us = message_id(params[0]), params[1]
