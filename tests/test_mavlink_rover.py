@@ -19,7 +19,7 @@ from mcusim.testing import wait_until
 MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC = 10, 0          # MAVLink common.xml enums
 MAV_STATE_STANDBY, MAV_STATE_ACTIVE, MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY = 3, 4, 5, 6
 ARMED = 128
-ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED = 0, 1, 2, 3
+ACCEPTED, TEMPORARILY_REJECTED, DENIED, UNSUPPORTED, FAILED = 0, 1, 2, 3, 4   # MAV_RESULT
 ARM_DISARM = 400
 BODY_NED, VEL_YAWRATE_MASK = 8, 0x05C7                        # what mavros setpoint_velocity sends
 
@@ -58,11 +58,11 @@ def test_heartbeat_is_a_generic_ground_rover_at_1hz_from_system_1_component_1():
     assert text.text.startswith("motors disabled: no answer from 0x08")
 
 
-def test_arm_is_acknowledged_for_target_component_0_and_denied_without_motor_modules():
+def test_arm_is_acknowledged_for_target_component_0_and_failed_without_motor_modules():
     sim, gcs = bench()
     sim.run(seconds="0.3s")
     ack = arm(gcs, 1, component=0)               # pymavlink's target_component after wait_heartbeat
-    assert (ack.command, ack.result) == (ARM_DISARM, DENIED)
+    assert (ack.command, ack.result) == (ARM_DISARM, FAILED)     # valid, cannot be carried out
     assert (ack.target_system, ack.target_component) == (255, 190)
     assert arm(gcs, 0, component=1).result == ACCEPTED    # disarming is always accepted
     assert arm(gcs, 0.5).result == DENIED                  # param1 other than 0/1 is invalid

@@ -194,3 +194,35 @@ def test_disarming_stops_the_rover_without_a_watchdog_warning():
     fw = sim.firmware
     assert fw.command_target() == (0.0, 0.0, 0.0) and not fw.watchdog_tripped
     assert not [m for m in gcs.messages("STATUSTEXT") if m.text.startswith("watchdog")]
+
+
+# --- MAV_RESULT ----------------------------------------------------------------------------------------
+def _result_meaning(code):
+    return ml.enums["MAV_RESULT"][code].description
+
+
+def test_arming_that_cannot_be_carried_out_is_failed_and_bad_param1_is_denied():
+    """MAV_RESULT_FAILED: 'valid, but execution has failed ... attempting to arm when sensors are not
+    calibrated'; MAV_RESULT_DENIED: 'one or more parameter values are invalid'."""
+    assert "arm" in _result_meaning(ml.MAV_RESULT_FAILED) and "invalid" in _result_meaning(ml.MAV_RESULT_DENIED)
+    sim = mcusim.load("ciaa-edu")                       # no motor modules: the motors are not enabled
+    gcs = MavlinkClient(sim, "USART3")
+    sim.run(seconds="0.3s")
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_FAILED
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 2, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_DENIED
+
+
+@pytest.mark.parametrize("command", [ARM_DISARM, ml.MAV_CMD_SET_MESSAGE_INTERVAL, ml.MAV_CMD_REQUEST_MESSAGE,
+                                     ml.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES])
+def test_a_command_long_only_command_sent_as_command_int_says_so(command):
+    """MAV_RESULT_COMMAND_LONG_ONLY: 'Command is only accepted when sent as a COMMAND_LONG'."""
+    assert "COMMAND_LONG" in _result_meaning(ml.MAV_RESULT_COMMAND_LONG_ONLY)
+    sim = mcusim.load("ciaa-edu")
+    gcs = MavlinkClient(sim, "USART3")
+    sim.run(seconds="0.05s")
+    gcs.mav.command_int_send(1, 1, 0, command, 0, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_COMMAND_LONG_ONLY
+    gcs.mav.command_int_send(1, 1, 0, ml.MAV_CMD_DO_SET_MODE, 0, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_UNSUPPORTED

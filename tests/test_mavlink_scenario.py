@@ -22,9 +22,9 @@ time = "250ms"
 mavlink = { message = "COMMAND_LONG", target_system = 1, command = 400, param1 = 1 }
 
 [[expect]]
-name = "arming denied: no motor modules"
+name = "arming failed: no motor modules"
 mavlink = "COMMAND_ACK"
-fields = { command = 400, result = 2 }
+fields = { command = 400, result = 4 }
 
 [[expect]]
 name = "not accepted"

@@ -36,8 +36,10 @@ MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER = 6, 18
 MODE_CUSTOM, MODE_GUIDED, MODE_ARMED = 1, 8, 128
 STATE_BOOT, STATE_STANDBY, STATE_ACTIVE, STATE_CRITICAL, STATE_EMERGENCY = 1, 3, 4, 5, 6
 SEV_CRITICAL, SEV_ERROR, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 3, 4, 5, 6
-RESULT_ACCEPTED, RESULT_TEMP_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED = 0, 1, 2, 3
+RESULT_ACCEPTED, RESULT_TEMP_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT_FAILED = 0, 1, 2, 3, 4
+RESULT_COMMAND_LONG_ONLY = 7
 CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPS = 400, 511, 512, 520
+COMMAND_LONG_ONLY = (CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPS)
 PARAM_REAL32 = 9
 SENSOR_MOTORS, SENSOR_BATTERY = 0x8000, 0x02000000
 CAPS = 2 | 128 | 8192     # PARAM_FLOAT | SET_POSITION_TARGET_LOCAL_NED | MAVLINK2
@@ -328,7 +330,8 @@ class MavlinkLink:
         if not self._for_me(m.target_system, m.target_component):
             self.ignored += 1
             return
-        self.send(self.ml.MAVLink_command_ack_message(m.command, RESULT_UNSUPPORTED, 0, 0, m.get_srcSystem(),
+        result = RESULT_COMMAND_LONG_ONLY if m.command in COMMAND_LONG_ONLY else RESULT_UNSUPPORTED
+        self.send(self.ml.MAVLink_command_ack_message(m.command, result, 0, 0, m.get_srcSystem(),
                                                       m.get_srcComponent()))
 
     def command(self, cmd: int, params) -> int:
@@ -342,7 +345,7 @@ class MavlinkLink:
             if rc.estop_pressed or self.gcs_silent(rc.rtos.tick_count):   # until it heartbeats again
                 return RESULT_TEMP_REJECTED
             if rc.battery_state == "critical" or not rc.motors_enabled:
-                return RESULT_DENIED
+                return RESULT_FAILED      # a valid command that cannot be carried out (not DENIED: bad params)
             if not self.armed:
                 self.armed, self._cmd_key = True, None
             return RESULT_ACCEPTED
