@@ -226,3 +226,29 @@ def test_a_command_long_only_command_sent_as_command_int_says_so(command):
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_COMMAND_LONG_ONLY
     gcs.mav.command_int_send(1, 1, 0, ml.MAV_CMD_DO_SET_MODE, 0, 0, 1, 0, 0, 0, 0, 0, 0)
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_UNSUPPORTED
+
+
+# --- set points ----------------------------------------------------------------------------------------
+IGNORE_ALL_BUT_VELOCITY_AND_YAW_RATE = (ml.POSITION_TARGET_TYPEMASK_X_IGNORE | ml.POSITION_TARGET_TYPEMASK_Y_IGNORE
+                                        | ml.POSITION_TARGET_TYPEMASK_Z_IGNORE | ml.POSITION_TARGET_TYPEMASK_VZ_IGNORE
+                                        | ml.POSITION_TARGET_TYPEMASK_AX_IGNORE | ml.POSITION_TARGET_TYPEMASK_AY_IGNORE
+                                        | ml.POSITION_TARGET_TYPEMASK_AZ_IGNORE | ml.POSITION_TARGET_TYPEMASK_YAW_IGNORE)
+
+
+@pytest.mark.parametrize("ignore, frame, expected", [
+    (ml.POSITION_TARGET_TYPEMASK_VX_IGNORE | ml.POSITION_TARGET_TYPEMASK_VY_IGNORE, ml.MAV_FRAME_BODY_NED,
+     (0.0, 0.0, 0.5)),                                               # 0x05FF: a yaw rate alone
+    (ml.POSITION_TARGET_TYPEMASK_VY_IGNORE, ml.MAV_FRAME_BODY_NED, (0.2, 0.0, 0.5)),            # 0x05D7
+    (ml.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE, ml.MAV_FRAME_LOCAL_OFFSET_NED, (0.2, 0.0, 0.0)),
+])
+def test_a_set_point_with_any_velocity_or_yaw_rate_in_use_is_obeyed_with_ignored_axes_zero(ignore, frame, expected):
+    """type_mask bits mark fields to ignore (POSITION_TARGET_TYPEMASK): a set point that uses only
+    some of vx, vy, yaw_rate is still a set point; MAV_FRAME_LOCAL_OFFSET_NED velocities are
+    LOCAL_NED velocities (at heading 0, forward = north)."""
+    mask = IGNORE_ALL_BUT_VELOCITY_AND_YAW_RATE | ignore
+    sim, gcs = armed_rover()
+    gcs.mav.set_position_target_local_ned_send(0, 1, 0, frame, mask, 0, 0, 0, 0.2, 9.0, 0, 0, 0, 0, 0, -0.5)
+    sim.run(seconds="0.02s")
+    fw = sim.firmware
+    assert fw.cmd == pytest.approx(expected, abs=1e-3) and fw.cmd_tick is not None
+    assert fw.link.ignored == 0

@@ -43,7 +43,7 @@ COMMAND_LONG_ONLY = (CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_
 PARAM_REAL32 = 9
 SENSOR_MOTORS, SENSOR_BATTERY = 0x8000, 0x02000000
 CAPS = 2 | 128 | 8192     # PARAM_FLOAT | SET_POSITION_TARGET_LOCAL_NED | MAVLINK2
-FRAME_LOCAL_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 8, 9, 12
+FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 7, 8, 9, 12
 IGNORE_VX, IGNORE_VY, IGNORE_YAW_RATE = 8, 16, 2048
 AXIS_INVALID = 0x7FFF
 START_BYTES = (0xFD, 0xFE)                 # MAVLink 2, MAVLink 1
@@ -371,14 +371,17 @@ class MavlinkLink:
         if not self._for_me(m.target_system, m.target_component):
             self.ignored += 1
             return
-        if not self.armed or m.type_mask & (IGNORE_VX | IGNORE_VY) or m.coordinate_frame not in (
-                FRAME_LOCAL_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD):
+        used = ~m.type_mask & (IGNORE_VX | IGNORE_VY | IGNORE_YAW_RATE)
+        if not self.armed or not used or m.coordinate_frame not in (
+                FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD):
             self.ignored += 1
             return
-        fwd, right = m.vx, m.vy
-        if m.coordinate_frame == FRAME_LOCAL_NED:      # rotate by the heading (NED yaw = -odometry yaw)
-            psi = -self.rc.odometry.pose[2]
-            fwd, right = m.vx * math.cos(psi) + m.vy * math.sin(psi), -m.vx * math.sin(psi) + m.vy * math.cos(psi)
+        vx = 0.0 if m.type_mask & IGNORE_VX else m.vx          # an ignored axis is zero
+        vy = 0.0 if m.type_mask & IGNORE_VY else m.vy
+        fwd, right = vx, vy
+        if m.coordinate_frame in (FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED):   # for velocities the same frame
+            psi = -self.rc.odometry.pose[2]                    # rotate by the heading (NED yaw = -odometry yaw)
+            fwd, right = vx * math.cos(psi) + vy * math.sin(psi), -vx * math.sin(psi) + vy * math.cos(psi)
         wz = 0.0 if m.type_mask & IGNORE_YAW_RATE else -m.yaw_rate
         if not all(math.isfinite(v) for v in (fwd, right, wz)):
             self.ignored += 1
