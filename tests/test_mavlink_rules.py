@@ -135,7 +135,7 @@ def test_param_set_of_a_gain_one_module_did_not_take_is_not_echoed_as_taken():
     gcs.mav.param_set_send(1, 0, b"WHL_KP", 0.03125, ml.MAV_PARAM_TYPE_REAL32)
     echo = gcs.recv_match("PARAM_VALUE", timeout="0.1s")
     assert echo.param_id == "WHL_KP" and math.isnan(echo.param_value)
-    text = gcs.recv_match("STATUSTEXT", timeout="0.05s")
+    text = gcs.messages("STATUSTEXT")[-1]
     assert text.severity == ml.MAV_SEVERITY_WARNING and text.text == "WHL_KP not written to 0x0a"
     mcm3.bus.attach(mcm3)                            # back: the others hold 0.03125, mcm3 its old gain
     gcs.mav.param_request_read_send(1, 0, b"WHL_KP", -1)
@@ -252,3 +252,33 @@ def test_a_set_point_with_any_velocity_or_yaw_rate_in_use_is_obeyed_with_ignored
     fw = sim.firmware
     assert fw.cmd == pytest.approx(expected, abs=1e-3) and fw.cmd_tick is not None
     assert fw.link.ignored == 0
+
+
+# --- the line's capacity -------------------------------------------------------------------------------
+def test_a_message_interval_the_57600_baud_line_cannot_carry_is_denied():
+    """57600 baud 8N1 carries 5760 bytes/s; ATTITUDE (28-byte payload, 40 bytes framed) at 1 kHz
+    would need 40 kB/s: MAV_RESULT_DENIED ('value allowed by spec but not supported'), the
+    interval unchanged; 20 Hz fits."""
+    sim, gcs = rover()
+    sim.run(seconds="0.05s")
+    gcs.mav.command_long_send(1, 1, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 0, ml.MAVLINK_MSG_ID_ATTITUDE, 1000, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_DENIED
+    assert sim.firmware.link.intervals[ml.MAVLINK_MSG_ID_ATTITUDE] == 100
+    gcs.mav.command_long_send(1, 1, ml.MAV_CMD_SET_MESSAGE_INTERVAL, 0, ml.MAVLINK_MSG_ID_ATTITUDE, 50000, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
+
+
+def test_replies_and_heartbeats_are_never_skipped_for_telemetry_when_the_line_is_full():
+    """Each PARAM_REQUEST_READ is answered by one PARAM_VALUE (the parameter protocol), however many
+    come at once; replies outgrow requests (37 vs 32 bytes) so the transmit buffer fills: the
+    streams give way, the heartbeat still goes out every second."""
+    sim, gcs = rover()
+    sim.run(seconds="0.05s")
+    burst = b"".join(gcs.mav.param_request_read_encode(1, 1, b"", 3).pack(gcs.mav) for _ in range(150))
+    gcs.endpoint.feed(burst)
+    sim.run(seconds=len(burst) * 10 / 57600 + 0.6)
+    assert len(gcs.messages("PARAM_VALUE")) == 150
+    beats = [t for t, m in gcs.log if m.get_type() == "HEARTBEAT"]
+    drain = 1024 * 10 / 57600                # at most a full 1 kB transmit buffer ahead of it
+    assert len(beats) == 2 and (beats[1] - beats[0]) / sim.timebase.base_hz == pytest.approx(1.0, abs=drain)
+    assert sim.firmware.link.tx_skipped > 0          # the telemetry was what gave way

@@ -21,7 +21,11 @@ it (the sender's next frame), and treats it as garbage to rescan otherwise.
 
 Transmit: a message is written only if the serial transmit buffer has room for the whole frame
 (``poll(POLLOUT)``); otherwise it is skipped and counted in ``tx_skipped`` (the sequence number
-still advances, so the receiver sees the gap), except for parameter-list items, which wait.
+still advances, so the receiver sees the gap). Telemetry streams leave ``TX_RESERVE`` bytes free
+for the ``PRIORITY`` messages (HEARTBEAT, COMMAND_ACK, PARAM_VALUE, STATUSTEXT); PARAM_VALUEs
+(list items, read and set replies) wait in ``param_queue`` until they fit beside a smaller reserve.
+SET_MESSAGE_INTERVAL refuses intervals whose streams would take more than ``STREAM_SHARE`` of the
+line.
 
 Cycle costs (declared, ``firmware.cycles_mavlink_*``): one wake-up, each received byte
 (``mavlink_parse_char``), each message handled and each message packed and queued.
@@ -56,6 +60,12 @@ GAIN_PARAMS = {"WHL_KP": "KP", "WHL_KI": "KI", "WHL_KD": "KD"}
 GAIN_MAX = 1e4                             # the modules' own range for kp, ki, kd
 BATTERY_PARAMS = {"BATT_LOW_V": "low_v", "BATT_CRIT_V": "critical_v", "BATT_HYST_V": "hysteresis_v"}
 PARAM_IDS = tuple(GAIN_PARAMS) + tuple(BATTERY_PARAMS)
+# never skipped for the streams' sake: the TX buffer keeps TX_RESERVE bytes free for them
+PRIORITY = {0: "HEARTBEAT", 77: "COMMAND_ACK", 22: "PARAM_VALUE", 253: "STATUSTEXT"}
+TX_RESERVE = 128
+PARAM_VALUE_LEN, PARAM_RESERVE, PARAM_QUEUE = 37, 48, 64     # framed bytes; bytes kept free; entries
+STREAM_SHARE = 0.75          # of the line's bytes per second, at most, for the streams
+FRAME_OVERHEAD = 12          # MAVLink 2: 10-byte header, 2-byte CRC
 
 
 def message_id(param: float) -> int | None:
@@ -82,7 +92,7 @@ class MavlinkLink:
         # poll() on the serial device and on the event queue: one wake-up for both
         self.wake = serial.rxavail
         self._text_id = 0
-        self.param_queue: list[int] = []        # indices still to send (PARAM_REQUEST_LIST)
+        self.param_queue: list[int] = []        # PARAM_VALUEs still to send, in order (list, reads, sets)
         self.gains = None                       # (KP, KI, KD) as read from the first module
         self.armed = False
         self.gcs_tick = None                    # tick of the last GCS heartbeat
@@ -93,18 +103,20 @@ class MavlinkLink:
         self.rx_frames = self.rx_errors = self.tx_frames = self.tx_skipped = self.ignored = 0
         self.last_busy = (0, 0)                 # (tick, cpu busy ticks) for the load figure
         self._unknown = None                    # an unknown-id frame waiting for the byte after it
+        self._priority = False                  # the frame being written is a PRIORITY one
 
     # --- file-like for pymavlink: write() is the serial device's write() -----------------------------
     def write(self, buf) -> int:
         buf = bytes(buf)
         self._cost += self.p["cycles_mavlink_tx"]
-        if self.serial.txroom < len(buf):
+        if self.serial.txroom < len(buf) + (0 if self._priority else TX_RESERVE):
             self.tx_skipped += 1
             return 0
         self.tx_frames += 1
         return self.serial.write(buf)
 
     def send(self, msg) -> None:
+        self._priority = msg.get_msgId() in PRIORITY
         self.mav.send(msg)
 
     # --- the task ---------------------------------------------------------------------------------
@@ -261,6 +273,15 @@ class MavlinkLink:
             self.send(ml.MAVLink_autopilot_version_message(CAPS, 0, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0,
                                                            [0] * 18))
 
+    def stream_load(self, intervals: dict) -> float:
+        """Bytes per second the streams take on the line at these intervals (frames at full length)."""
+        total = 0.0
+        for mid, iv in intervals.items():
+            if iv > 0:
+                per = 2 * len(self.rc.modules) if mid == 251 else 1
+                total += per * (FRAME_OVERHEAD + self.ml.mavlink_map[mid].unpacker.size) * 1000 / iv
+        return total
+
     def load_permille(self) -> int:
         """CPU load over the last SYS_STATUS interval, from the core's busy time (d%)."""
         now, busy = self.rc.mcu.kernel.now, self.rc.cpu.busy_ticks
@@ -353,7 +374,10 @@ class MavlinkLink:
             mid, us = message_id(params[0]), params[1]
             if mid not in STREAMS or not math.isfinite(us) or (us < 0 and us != -1):
                 return RESULT_DENIED
-            self.intervals[mid] = STREAMS[mid] if us == 0 else (0 if us == -1 else max(1, round(us / 1000)))
+            iv = STREAMS[mid] if us == 0 else (0 if us == -1 else max(1, round(us / 1000)))
+            if self.stream_load({**self.intervals, mid: iv}) > STREAM_SHARE * self.p["mavlink_baud"] / 10:
+                return RESULT_DENIED      # more than the line carries beside the replies
+            self.intervals[mid] = iv
             self.due[mid] = rc.rtos.tick_count
             return RESULT_ACCEPTED
         if cmd == CMD_REQUEST_MESSAGE:
@@ -408,7 +432,7 @@ class MavlinkLink:
         if not self._for_me(m.target_system, m.target_component):
             self.ignored += 1
             return
-        self.param_queue = list(range(len(PARAM_IDS)))
+        self.queue_param(*range(len(PARAM_IDS)))
 
     async def on_param_request_read(self, m) -> None:
         if not self._for_me(m.target_system, m.target_component):
@@ -418,7 +442,7 @@ class MavlinkLink:
         if idx is None or not 0 <= idx < len(PARAM_IDS):
             self.ignored += 1
             return
-        await self.send_param(idx)
+        self.queue_param(idx)
 
     async def on_param_set(self, m) -> None:
         if not self._for_me(m.target_system, m.target_component):
@@ -445,7 +469,7 @@ class MavlinkLink:
             trial = {**self.p, key: v}
             if trial["critical_v"] < trial["low_v"] and trial["hysteresis_v"] <= 10:
                 self.p[key] = v            # refused values are echoed unchanged
-        await self.send_param(idx)
+        self.queue_param(idx)
 
     def _index(self, param_id) -> int | None:
         pid = param_id if isinstance(param_id, str) else bytes(param_id).decode("ascii", "replace")
@@ -473,18 +497,20 @@ class MavlinkLink:
             return (await self.read_gains())[list(GAIN_PARAMS).index(name)]
         return float(self.p[BATTERY_PARAMS[name]])
 
-    async def send_param(self, idx: int) -> bool:
-        value = await self.param_value(idx)
-        if self.serial.txroom < 40:          # PARAM_VALUE is 37 bytes on the wire: wait for room
-            return False
-        self.send(self.ml.MAVLink_param_value_message(PARAM_IDS[idx].encode(), value, PARAM_REAL32,
-                                                      len(PARAM_IDS), idx))
-        return True
+    def queue_param(self, *idx: int) -> None:
+        """PARAM_VALUEs to send, never dropped while the queue (PARAM_QUEUE entries) has room."""
+        room = PARAM_QUEUE - len(self.param_queue)
+        self.param_queue.extend(idx[:room])
+        self.ignored += max(0, len(idx) - room)
 
     async def param_step(self) -> None:
-        """PARAM_REQUEST_LIST: one PARAM_VALUE per pass, paced by the transmit buffer."""
-        if self.param_queue and await self.send_param(self.param_queue[0]):
-            self.param_queue.pop(0)
+        """Send queued PARAM_VALUEs while the transmit buffer has room for them beside PARAM_RESERVE
+        bytes (a HEARTBEAT and a COMMAND_ACK); the streams keep the larger TX_RESERVE free."""
+        while self.param_queue and self.serial.txroom >= PARAM_VALUE_LEN + PARAM_RESERVE:
+            idx = self.param_queue.pop(0)
+            value = await self.param_value(idx)
+            self.send(self.ml.MAVLink_param_value_message(PARAM_IDS[idx].encode(), value, PARAM_REAL32,
+                                                          len(PARAM_IDS), idx))
 
     def summary(self) -> dict:
         return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
