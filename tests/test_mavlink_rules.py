@@ -282,3 +282,34 @@ def test_replies_and_heartbeats_are_never_skipped_for_telemetry_when_the_line_is
     drain = 1024 * 10 / 57600                # at most a full 1 kB transmit buffer ahead of it
     assert len(beats) == 2 and (beats[1] - beats[0]) / sim.timebase.base_hz == pytest.approx(1.0, abs=drain)
     assert sim.firmware.link.tx_skipped > 0          # the telemetry was what gave way
+
+
+# --- what the rover reports ----------------------------------------------------------------------------
+def _heartbeat_now(sim, gcs):
+    gcs.mav.command_long_send(1, 1, ml.MAV_CMD_REQUEST_MESSAGE, 0, ml.MAVLINK_MSG_ID_HEARTBEAT, 0, 0, 0, 0, 0, 0)
+    gcs.flush()
+    return gcs.recv_match("HEARTBEAT", timeout="0.1s")
+
+
+def test_heartbeat_base_mode_names_the_command_source_in_use():
+    """MAV_MODE_FLAG_GUIDED_ENABLED: driven by set points; MAV_MODE_FLAG_MANUAL_INPUT_ENABLED: by a
+    joystick (MANUAL_CONTROL); neither while disarmed."""
+    guided, manual = ml.MAV_MODE_FLAG_GUIDED_ENABLED, ml.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+    sim, gcs = armed_rover()
+    gcs.mav.manual_control_send(1, 300, 0, 0, 0, 0)
+    assert _heartbeat_now(sim, gcs).base_mode & (guided | manual) == manual
+    gcs.mav.set_position_target_local_ned_send(0, 1, 0, ml.MAV_FRAME_BODY_NED, 0x05C7, 0, 0, 0, 0.2, 0, 0, 0, 0, 0, 0, 0)
+    hb = _heartbeat_now(sim, gcs)
+    assert hb.base_mode & (guided | manual) == guided and hb.base_mode & ml.MAV_MODE_FLAG_SAFETY_ARMED
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0)
+    assert _heartbeat_now(sim, gcs).base_mode & (guided | manual | ml.MAV_MODE_FLAG_SAFETY_ARMED) == 0
+
+
+def test_the_first_sys_status_load_does_not_count_the_boot():
+    """SYS_STATUS.load is the main loop's usage over the reporting interval: the first figure starts
+    when the task does, so it is no higher than the steady figures after it."""
+    sim = mcusim.load("ciaa-edu")
+    gcs = MavlinkClient(sim, "USART3")
+    sim.run(seconds="2.1s")
+    loads = [m.load for m in gcs.messages("SYS_STATUS")]
+    assert len(loads) == 3 and loads[0] <= max(loads[1:]) < 1000

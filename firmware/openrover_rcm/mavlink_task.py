@@ -37,7 +37,7 @@ import math
 
 MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC = 10, 0
 MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER = 6, 18
-MODE_CUSTOM, MODE_GUIDED, MODE_ARMED = 1, 8, 128
+MODE_CUSTOM, MODE_GUIDED, MODE_MANUAL_INPUT, MODE_ARMED = 1, 8, 64, 128
 STATE_BOOT, STATE_STANDBY, STATE_ACTIVE, STATE_CRITICAL, STATE_EMERGENCY = 1, 3, 4, 5, 6
 SEV_CRITICAL, SEV_ERROR, SEV_WARNING, SEV_NOTICE, SEV_INFO = 2, 3, 4, 5, 6
 RESULT_ACCEPTED, RESULT_TEMP_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT_FAILED = 0, 1, 2, 3, 4
@@ -95,6 +95,7 @@ class MavlinkLink:
         self.param_queue: list[int] = []        # PARAM_VALUEs still to send, in order (list, reads, sets)
         self.gains = None                       # (KP, KI, KD) as read from the first module
         self.armed = False
+        self.source = 0                         # MODE_GUIDED or MODE_MANUAL_INPUT: what drives, armed
         self.gcs_tick = None                    # tick of the last GCS heartbeat
         self.gcs_lost = False
         self._cmd_key = None
@@ -122,6 +123,7 @@ class MavlinkLink:
     # --- the task ---------------------------------------------------------------------------------
     async def run(self):
         rtos, cpu = self.rc.rtos, self.rc.cpu
+        self.last_busy = (self.rc.mcu.kernel.now, cpu.busy_ticks)     # the first load figure starts here
         while True:
             now = rtos.tick_count
             self._cost += self.p["cycles_mavlink_wake"]
@@ -223,7 +225,7 @@ class MavlinkLink:
 
     def heartbeat_state(self) -> tuple[int, int]:
         rc = self.rc
-        base = MODE_CUSTOM | ((MODE_ARMED | MODE_GUIDED) if self.armed else 0)
+        base = MODE_CUSTOM | ((MODE_ARMED | self.source) if self.armed else 0)
         if rc.estop_pressed or rc.estop_latched:
             status = STATE_EMERGENCY
         elif rc.battery_state == "critical" or rc.faults:
@@ -308,7 +310,7 @@ class MavlinkLink:
 
     def disarm(self) -> None:
         if self.armed:
-            self.armed, self._cmd_key = False, None
+            self.armed, self._cmd_key, self.source = False, None, 0
             self._next_cmd_id -= 1
             self.rc.cmd_vel_clear(self._next_cmd_id)     # stop, without starting the watchdog
 
@@ -410,6 +412,7 @@ class MavlinkLink:
         if not all(math.isfinite(v) for v in (fwd, right, wz)):
             self.ignored += 1
             return
+        self.source = MODE_GUIDED
         self._command(fwd, -right if self.rc.layout.holonomic else 0.0, wz)
 
     async def on_manual_control(self, m) -> None:
@@ -418,6 +421,7 @@ class MavlinkLink:
             return
         x = 0 if m.x == AXIS_INVALID else max(-1000, min(1000, m.x))
         r = 0 if m.r == AXIS_INVALID else max(-1000, min(1000, m.r))
+        self.source = MODE_MANUAL_INPUT
         self._command(x / 1000 * self.p["manual_max_linear"], 0.0, -r / 1000 * self.p["manual_max_yaw"])
 
     async def on_mission_request_list(self, m) -> None:
