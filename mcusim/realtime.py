@@ -1,9 +1,11 @@
 """``--realtime``: keep simulated time in step with the wall clock.
 
 The run is cut into slices of ``step`` simulated time (10 ms by default; the event order does not
-depend on where a run pauses). After each slice, if simulated time is ahead of the wall clock
-since the start, the host sleeps the difference; if it is behind (the simulation is slower than
-real time), it does not sleep, and the lag (wall minus simulated time) is reported: every
+depend on where a run pauses). After each slice, if simulated time is ahead of the wall-clock
+schedule, the host sleeps the difference; if it is behind (the simulation is slower than real
+time), it does not sleep and the schedule is re-anchored at the present: time lost is not made up
+later by running faster than real time (a ground station would see a burst of heartbeats). The
+total lag (wall minus simulated time, the sum of what was lost) is reported: every
 ``report_every`` wall seconds on ``stream`` while it exceeds ``warn_lag`` (followed by ``note()``, e.g.
 the host link's dropped bytes), and in the result.
 Nothing here decides what happens inside the simulation: pacing only stretches the wall time.
@@ -46,13 +48,16 @@ def run_realtime(sim, duration, *, step="10ms", stream=None, report_every: float
     pace = Pacing()
     t0 = clock()
     last_report = t0
+    lost = 0.0                           # wall seconds the schedule has been moved on by
     while sim.kernel.now < end:
         sim.run(until_tick=min(end, sim.kernel.now + slice_))
         pace.simulated_s = (sim.kernel.now - start) / hz
-        ahead = pace.simulated_s - (clock() - t0)
+        ahead = pace.simulated_s - (clock() - t0 - lost)
         if ahead > 0:
             sleep(ahead)
             pace.slept_s += ahead
+        else:
+            lost -= ahead                # re-anchor: no catching up later
         now = clock()
         pace.wall_s = now - t0
         pace.max_lag_s = max(pace.max_lag_s, pace.lag_s)

@@ -190,3 +190,18 @@ def test_a_host_that_outpaces_the_line_loses_bytes_beyond_the_rx_buffer_not_seco
         ep.close()
         host.close()
         sim.close()
+
+
+def test_realtime_does_not_run_faster_than_real_time_to_make_up_an_earlier_lag():
+    """After a slow stretch the schedule is re-anchored: the fast stretch that follows is still paced
+    1:1 (sleeping), not run flat out until the wall clock is caught up; the total lag is reported."""
+    sim = mcusim.load("ciaa-edu")
+
+    class Phases(_Clock):                       # 4x slower than real time for 1 s, then 4x faster
+        def __call__(self):
+            t = self.sim.time_s
+            return min(t, 1.0) * 4.0 + max(0.0, t - 1.0) * 0.25 + sum(self.slept)
+    clock = Phases(sim, None)
+    pace = run_realtime(sim, "2s", clock=clock, sleep=clock.sleep, stream=io.StringIO())
+    assert sum(clock.slept) == pytest.approx(0.75, abs=0.02)    # the second second took a wall second
+    assert pace.lag_s == pytest.approx(3.0, abs=0.02) and "behind by 3.0" in pace.line()
