@@ -46,7 +46,8 @@ mavlink = "HEARTBEAT"
     assert ok == [True, False, False, False]      # one heartbeat a second: none after 260 ms
     t = float(sc.results[0].got.split()[2])
     assert 0.25 + 45 * 10 / 57600 < t < 0.3          # after the 45-byte command's frames at 57600 baud
-    assert sc.results[1].got == "not received"
+    assert sc.results[1].got == "1 received, none matched; last: command=400, result=4"
+    assert sc.results[3].got == "not received"
     assert any(text.startswith("mavlink COMMAND_LONG") for _, text in sc.log)
 
 
@@ -124,3 +125,43 @@ def test_a_companion_heartbeat_from_system_1_component_191_counts_as_the_ground_
     mcusim_mavlink(sim, system=1, component=191, heartbeat_hz=10)
     sim.run(seconds="0.25s")
     assert sim.firmware.link.gcs_tick is not None
+
+
+def test_a_mavlink_expectation_that_saw_other_values_says_how_many_came_and_what_the_last_held(tmp_path):
+    p = _write(tmp_path, """
+[[at]]
+time = "250ms"
+mavlink = { message = "COMMAND_LONG", target_system = 1, command = 400, param1 = 1 }
+
+[[expect]]
+name = "armed"
+mavlink = "COMMAND_ACK"
+fields = { command = 400, result = 0 }
+
+[[expect]]
+name = "the bank unmeasured at boot: a prefix of the ten voltages"
+mavlink = "BATTERY_STATUS"
+fields = { voltages = [65535] }
+
+[[expect]]
+name = "a bank of 1 mV"
+mavlink = "BATTERY_STATUS"
+fields = { voltages = [1] }
+""")
+    _, sc = run_scenario(load_scenario(p))
+    r = sc.results
+    assert r[0].got == "1 received, none matched; last: command=400, result=4" and not r[0].passed
+    assert r[1].passed                          # [65535] was not padded to [65535, 0, 0, ...]
+    assert r[2].got.startswith("1 received, none matched; last: voltages=[65535, 65535") and not r[2].passed
+
+
+@pytest.mark.parametrize("when", ['after = "2s"', 'after = "300ms"\ntime = "200ms"'])
+def test_an_after_past_the_time_or_the_end_of_the_run_is_a_scenario_error(tmp_path, capsys, when):
+    p = _write(tmp_path, f"""
+[[expect]]
+mavlink = "HEARTBEAT"
+{when}
+""")
+    assert main(["run", "ciaa-edu", "--scenario", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "is later than" in err and "Traceback" not in err

@@ -9,7 +9,8 @@ Message and field names are pymavlink's (``common`` dialect): ``COMMAND_LONG``,
 Expectation: passes if a message of that type, received after ``after`` (default: from the start)
 and by ``time`` (default: the end of the run), has every field in ``fields`` equal to the value
 given; a ``float`` field is compared with the value rounded to float32 (what the wire carries), or
-within ``tol`` when given.
+within ``tol`` when given; an array given with fewer elements than the field has is compared on
+those first elements. A failure says how many messages of the type came and what the last one held.
 """
 
 from __future__ import annotations
@@ -143,10 +144,17 @@ class MavlinkExpect:
             raise sc._err(sc._line("expect", i, "time"), f"{where}: time {_fmt_time(self.time)} is after the "
                           f"end of the run (duration {_fmt_time(sc._duration)}); leave time out for the end")
         self.after = sc._value("expect", i, ("after",), e["after"], "duration") if "after" in e else Fraction(0)
+        if self.after > (sc._duration if self.time is None else self.time):
+            raise sc._err(sc._line("expect", i, "after"), f"{where}: after {_fmt_time(self.after)} is later than "
+                          + (f"time {_fmt_time(self.time)}" if self.time is not None else
+                             f"the end of the run (duration {_fmt_time(sc._duration)})"))
         spec = e.get("fields", {})
         if not isinstance(spec, dict):
             raise sc._err(sc._line("expect", i, "fields"), f"{where}: fields = {{ <field> = value, ... }}")
         self.fields = _fields(sc, self.cls, spec, lambda f: sc._line("expect", i, "fields", f), where)
+        for field, value in spec.items():       # an array given in part: only that prefix is compared
+            if isinstance(value, list):
+                self.fields[field] = self.fields[field][:len(value)]
         self.tol = sc._value("expect", i, ("tol",), e["tol"], "number") if "tol" in e else None
         if self.tol is not None and self.tol < 0:
             raise sc._err(sc._line("expect", i, "tol"), f"{where}: tol must not be negative")
@@ -163,16 +171,24 @@ class MavlinkExpect:
             kind = self.cls.fieldtypes[self.cls.fieldnames.index(field)]
             if isinstance(want, bytes):
                 want = want.decode()
-            if kind in ("float", "double") and not isinstance(want, list):
-                if self.tol is not None:
-                    if not abs(got - want) <= self.tol:
-                        return False
-                elif not (got == (want if kind == "double" else struct.unpack("<f", struct.pack("<f", want))[0])
-                          or (math.isnan(got) and math.isnan(want))):
+            if isinstance(want, list):
+                if len(got) < len(want) or not all(self._equal(kind, g, w) for g, w in zip(got, want)):
                     return False
-            elif got != want:
+            elif not self._equal(kind, got, want):
                 return False
         return True
+
+    def _equal(self, kind, got, want) -> bool:
+        if kind not in ("float", "double"):
+            return got == want
+        if self.tol is not None:
+            return abs(got - want) <= self.tol
+        return (got == (want if kind == "double" else struct.unpack("<f", struct.pack("<f", want))[0])
+                or (math.isnan(got) and math.isnan(want)))
+
+    def _shown(self, m) -> str:
+        """The expected fields as ``m`` has them."""
+        return ", ".join(f"{f}={getattr(m, f)!r}" for f in self.fields) or str(m)
 
     def plan(self, sc, sim, end: int) -> tuple:
         where = f"[[expect]] #{self.index + 1}"
@@ -187,7 +203,13 @@ class MavlinkExpect:
         after = tb.ticks(self.after, rounding=True)
 
         def check():
-            hits = [t for t, m in gcs.log if t >= after and m.get_type() == self.cls.msgname and self._matches(m)]
-            got = f"received at {hits[0] / tb.base_hz:.6f} s" if hits else "not received"
+            seen = [(t, m) for t, m in gcs.log if t >= after and m.get_type() == self.cls.msgname]
+            hits = [t for t, m in seen if self._matches(m)]
+            if hits:
+                got = f"received at {hits[0] / tb.base_hz:.6f} s"
+            elif seen:
+                got = f"{len(seen)} received, none matched; last: {self._shown(seen[-1][1])}"
+            else:
+                got = "not received"
             self.result = ExpectResult(self.name, sim.time_s, self.expected, got, bool(hits), self.line)
         return tick, PRIO_CHECK, check
