@@ -12,6 +12,8 @@ therefore be split across datagrams; ground stations and pymavlink parse UDP lin
 * ``udpin:HOST:PORT``: listens on HOST:PORT and sends to whoever sent the last datagram (nothing
   goes out, and ``dropped`` counts the bytes, until a peer has spoken).
 
+HOST is a name or an IPv4 address, or an IPv6 address in brackets (``udpout:[::1]:14550``).
+
 Sockets are non-blocking: the simulation never waits for the host. A datagram the host's stack
 refuses (no listener: ECONNREFUSED, a full buffer) is dropped and counted in ``dropped``. Like the
 bridge's own buffer, at most ``rx_buffer`` bytes (1024) wait for the USART's RX line; received
@@ -38,17 +40,20 @@ class UdpEndpoint:
         if mode not in ("udpin", "udpout"):
             raise ConfigError(f"UDP link mode {mode!r}: expected udpin or udpout")
         self.mode, self.host, self.port, self.poll_spec = mode, host, port, poll
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            addr = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)[0][4]
+        self.sock = None
+        try:                                   # IPv4 or IPv6, as the host name resolves ("[::1]": IPv6)
+            family, _, _, _, addr = socket.getaddrinfo(host.strip("[]"), port, socket.AF_UNSPEC,
+                                                       socket.SOCK_DGRAM)[0]
+            self.sock = socket.socket(family, socket.SOCK_DGRAM)
             if mode == "udpin":
                 self.sock.bind(addr)
                 self.peer = None
             else:
-                self.sock.bind(("0.0.0.0", 0))
+                self.sock.bind(("::", 0) if family == socket.AF_INET6 else ("0.0.0.0", 0))
                 self.peer = addr
         except OSError as exc:
-            self.sock.close()
+            if self.sock is not None:
+                self.sock.close()
             raise ConfigError(f"--mavlink {mode}:{host}:{port}: {exc.strerror or exc}") from None
         self.sock.setblocking(False)
         self.usart = None
@@ -157,7 +162,11 @@ def describe(endpoint) -> str:
     """One line for the user: where to connect."""
     if hasattr(endpoint, "path"):
         return f"{endpoint.path} (pty: mavproxy.py --master={endpoint.path}, mavros serial://{endpoint.path})"
-    host, port = endpoint.address[:2]
+    host, port = _host(endpoint.address[0]), endpoint.address[1]
     if endpoint.mode == "udpout":
-        return f"UDP to {endpoint.peer[0]}:{endpoint.peer[1]} from {host}:{port}"
+        return f"UDP to {_host(endpoint.peer[0])}:{endpoint.peer[1]} from {host}:{port}"
     return f"UDP on {host}:{port} (connect with udpout:{host}:{port})"
+
+
+def _host(addr: str) -> str:
+    return f"[{addr}]" if ":" in addr else addr

@@ -15,7 +15,7 @@ import pytest
 import mcusim
 from mcusim.cli import main
 from mcusim.errors import ConfigError
-from mcusim.hostudp import UdpEndpoint, parse_link
+from mcusim.hostudp import UdpEndpoint, describe, parse_link
 from mcusim.realtime import run_realtime
 
 mavutil = pytest.importorskip("pymavlink.mavutil")
@@ -205,3 +205,43 @@ def test_realtime_does_not_run_faster_than_real_time_to_make_up_an_earlier_lag()
     pace = run_realtime(sim, "2s", clock=clock, sleep=clock.sleep, stream=io.StringIO())
     assert sum(clock.slept) == pytest.approx(0.75, abs=0.02)    # the second second took a wall second
     assert pace.lag_s == pytest.approx(3.0, abs=0.02) and "behind by 3.0" in pace.line()
+
+
+def _ipv6_loopback():
+    import socket
+    try:
+        with socket.socket(socket.AF_INET6, socket.SOCK_DGRAM) as s:
+            s.bind(("::1", 0))
+        return True
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not _ipv6_loopback(), reason="no IPv6 loopback on this host")
+def test_an_ipv6_address_in_brackets_is_a_udp_link_like_pymavlinks():
+    import socket
+    assert parse_link("udpout:[::1]:14550") == ("udpout", "[::1]", 14550)
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART3", UdpEndpoint("udpin", "[::1]", 0))
+    host = socket.socket(socket.AF_INET6, socket.SOCK_DGRAM)
+    host.setblocking(False)
+    try:
+        from pymavlink.dialects.v20 import common as ml
+        mav = ml.MAVLink(None, 255, 190)
+        host.sendto(mav.command_long_encode(1, 1, 31000, 0, 0, 0, 0, 0, 0, 0, 0).pack(mav), ep.address[:2])
+        got = b""
+        for _ in range(100):
+            sim.run(seconds="10ms")
+            try:
+                got += host.recv(65535)
+            except BlockingIOError:
+                pass
+            acks = [m for m in ml.MAVLink(None).parse_buffer(got) or [] if m.get_type() == "COMMAND_ACK"]
+            if acks:
+                break
+        assert acks and acks[0].command == 31000
+        assert "UDP on [::1]:" in describe(ep)
+    finally:
+        ep.close()
+        host.close()
+        sim.close()
