@@ -313,3 +313,26 @@ def test_the_first_sys_status_load_does_not_count_the_boot():
     sim.run(seconds="2.1s")
     loads = [m.load for m in gcs.messages("SYS_STATUS")]
     assert len(loads) == 3 and loads[0] <= max(loads[1:]) < 1000
+
+
+def test_battery_status_bank_voltage_is_the_batterys_terminal_voltage_within_one_adc_step():
+    """BATTERY_STATUS.voltages[0] (mV) is the bank when cells are not measured; the monitor reads it
+    through the divider with the 10-bit ADC at VREFP = 3.3 V: one code is 3.3 / 1024 / ratio volts."""
+    sim = mcusim.load("ciaa-edu")
+    gcs = MavlinkClient(sim, "USART3")
+    sim.run(seconds="1.05s")
+    gcs.flush()
+    status = gcs.recv_match("BATTERY_STATUS", timeout="1.0s")
+    step = 3.3 / 1024 / sim.part("vbat_divider").ratio
+    assert abs(status.voltages[0] / 1000 - sim.part("battery").voltage()) <= step + 0.0005
+    assert status.voltages[1:] == [65535] * 9
+
+
+def test_manual_control_r_positive_turns_clockwise_and_x_positive_drives_forward():
+    """MANUAL_CONTROL: x forward-back, r yaw with clockwise positive; the controller's yaw rate is
+    counter-clockwise positive, so r = +500 of 1000 is half the manual yaw rate, negated."""
+    sim, gcs = armed_rover()
+    p = sim.firmware.p
+    gcs.mav.manual_control_send(1, 400, 0, 0, 500, 0)
+    sim.run(seconds="0.02s")
+    assert sim.firmware.cmd == pytest.approx((0.4 * p["manual_max_linear"], 0.0, -0.5 * p["manual_max_yaw"]))
