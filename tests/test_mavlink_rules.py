@@ -336,3 +336,31 @@ def test_manual_control_r_positive_turns_clockwise_and_x_positive_drives_forward
     gcs.mav.manual_control_send(1, 400, 0, 0, 500, 0)
     sim.run(seconds="0.02s")
     assert sim.firmware.cmd == pytest.approx((0.4 * p["manual_max_linear"], 0.0, -0.5 * p["manual_max_yaw"]))
+
+
+def test_a_body_frd_velocity_to_the_right_is_a_negative_lateral_command_on_a_mecanum_rover():
+    """MAV_FRAME_BODY_FRD: x forward, y right, z down, so yaw_rate > 0 turns clockwise; the
+    controller's body frame is x forward, y left, yaw counter-clockwise (REP 103)."""
+    sim, gcs = armed_rover(**{"rcm.firmware.layout": "mecanum"})
+    gcs.mav.set_position_target_local_ned_send(0, 1, 0, ml.MAV_FRAME_BODY_FRD, 0x05C7,
+                                               0, 0, 0, 0.1, 0.2, 0, 0, 0, 0, 0, 0.3)
+    sim.run(seconds="0.02s")
+    assert sim.firmware.cmd == pytest.approx((0.1, -0.2, -0.3))
+
+
+def test_a_local_ned_velocity_is_rotated_into_the_body_by_the_heading():
+    """MAV_FRAME_LOCAL_NED: x north (the start's forward), y east (its right); the heading in NED is
+    clockwise, the odometry's yaw counter-clockwise. A velocity along the heading is all forward,
+    one 90 degrees clockwise of it (NED) is all to the right: a negative lateral command."""
+    sim, gcs = armed_rover(**{"rcm.firmware.layout": "mecanum"})
+    fw = sim.firmware
+    for k in range(8):
+        yaw = -math.pi + (k + 0.5) * math.pi / 4      # odometry heading, counter-clockwise
+        fw.odometry.yaw = yaw                         # (the rover stands still: nothing updates it)
+        psi = -yaw                                    # NED heading
+        right = psi + math.pi / 2
+        vn, ve = 0.2 * math.cos(psi) + 0.1 * math.cos(right), 0.2 * math.sin(psi) + 0.1 * math.sin(right)
+        gcs.mav.set_position_target_local_ned_send(0, 1, 0, ml.MAV_FRAME_LOCAL_NED, 0x05C7,
+                                                   0, 0, 0, vn, ve, 0, 0, 0, 0, 0, 0)
+        sim.run(seconds="0.015s")                    # 65 bytes at 57600 baud: 11.3 ms
+        assert fw.cmd == pytest.approx((0.2, -0.1, 0.0), abs=1e-5), yaw   # float32 on the wire
