@@ -245,3 +245,12 @@ def test_an_ipv6_address_in_brackets_is_a_udp_link_like_pymavlinks():
         ep.close()
         host.close()
         sim.close()
+
+
+def test_a_run_with_a_link_reports_the_bytes_it_dropped_each_way(tmp_path, capsys):
+    out = tmp_path / "s.json"
+    main(["run", "ciaa-edu", "--mavlink", "udpin:127.0.0.1:0", "--duration", "50ms", "-q", "--summary", str(out)])
+    assert "MAVLink link: 0 bytes from the host dropped" in capsys.readouterr().out
+    import json
+    link = json.loads(out.read_text())["link"]
+    assert link["rx_dropped"] == 0 and link["tx_dropped"] > 0     # udpin: nobody to send to yet
