@@ -93,7 +93,7 @@ class MavlinkLink:
         self.wake = serial.rxavail
         self._text_id = 0
         self.param_queue: list[int] = []        # PARAM_VALUEs still to send, in order (list, reads, sets)
-        self.gains = None                       # (KP, KI, KD) as read from the first module
+        self.gains = None                       # (KP, KI, KD) once every module holds the same
         self.armed = False
         self.source = 0                         # MODE_GUIDED or MODE_MANUAL_INPUT: what drives, armed
         self.gcs_tick = None                    # tick of the last GCS heartbeat
