@@ -29,7 +29,7 @@ import errno
 import os
 import select
 
-from .errors import McusimError
+from .errors import ConfigError, McusimError
 from .kernel import PRIO_INPUT
 
 RX_BUFFER = 1024     # bytes a host end holds for the USART's RX line; the rest is dropped
@@ -81,7 +81,67 @@ class BufferEndpoint:
         usart.kernel.at(tick, usart.receive, bytes(data), prio=PRIO_INPUT)
 
 
-class PtyEndpoint:
+class PolledEndpoint:
+    """What the live host ends (pty, UDP) share: every ``poll`` of simulated time (base ticks, or a
+    duration string rounded to the nearest tick) they flush what the MCU sent to the host and
+    :func:`inject` what the host sent. Subclasses give ``_flush()``, ``_read() -> bytes`` and
+    ``_close_host()``."""
+
+    kind = "host link"
+
+    def _init_poll(self, poll, rx_buffer: int) -> None:
+        self.poll_spec, self.poll, self._ev = poll, None, None
+        self.usart = None
+        self.rx_buffer, self.rx_dropped = rx_buffer, 0  # host -> MCU bytes lost: the RX buffer was full
+        self.dropped = 0                               # MCU -> host bytes lost
+        self.injected: list[tuple[int, bytes]] = []    # (tick, bytes) handed to the USART
+        self.closed = False
+
+    def attach(self, usart) -> None:
+        if self.closed:
+            raise McusimError(f"{self.kind} is closed")
+        self.usart = usart
+        kernel = usart.kernel
+        spec = self.poll_spec
+        poll = spec if isinstance(spec, int) else kernel.timebase.ticks(spec, rounding=True)
+        if poll <= 0:
+            raise ConfigError(f"{self.kind} poll interval {spec!r} must be at least one base tick")
+        self.poll = poll
+        if self._ev is not None:
+            self._ev.cancel()
+        self._ev = kernel.after(poll, self._poll, prio=PRIO_INPUT)
+
+    def _poll(self) -> None:
+        self._ev = None
+        if self.closed:
+            return
+        self._flush()
+        data = self._read()
+        if data:
+            inject(self, data)
+        self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self._ev is not None:
+            self._ev.cancel()
+            self._ev = None
+        self._close_host()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        if not getattr(self, "closed", True):
+            self.close()
+
+
+class PtyEndpoint(PolledEndpoint):
     """A pseudo terminal: the host program opens ``path`` (the slave side); the simulation uses the master.
 
     Both ends are set to raw mode (no echo, no CR/LF translation: binary MAVLink frames pass
@@ -95,38 +155,17 @@ class PtyEndpoint:
     def __init__(self, poll="1ms", chunk: int = 4096, max_backlog: int = 1 << 20, rx_buffer: int = RX_BUFFER):
         import tty
 
-        self.poll_spec, self.chunk, self.max_backlog, self.rx_buffer = poll, chunk, max_backlog, rx_buffer
-        self.rx_dropped = 0                            # host -> MCU bytes lost: the RX buffer was full
+        self._init_poll(poll, rx_buffer)
+        self.chunk, self.max_backlog = chunk, max_backlog
         self.master, self.slave = os.openpty()
         tty.setraw(self.master)
         tty.setraw(self.slave)   # kept open, so the master never sees a hang-up between host sessions
         os.set_blocking(self.master, False)
         self.path = os.ttyname(self.slave)
-        self.usart = None
-        self.poll = None
-        self._ev = None
+        self.kind = f"pty {self.path}"
         self._backlog = bytearray()
-        self.dropped = 0                               # MCU -> host bytes lost because the host did not read
-        self.injected: list[tuple[int, bytes]] = []    # (tick, bytes) handed to the USART
-        self.closed = False
 
     # --- endpoint protocol ---------------------------------------------------------------------
-    def attach(self, usart) -> None:
-        if self.closed:
-            raise McusimError(f"pty {self.path} is closed")
-        self.usart = usart
-        kernel = usart.kernel
-        if isinstance(self.poll_spec, int):
-            poll = self.poll_spec
-        else:
-            poll = kernel.timebase.ticks(self.poll_spec, rounding=True)
-        if poll <= 0:
-            raise McusimError(f"pty poll interval {self.poll_spec!r} must be at least one base tick")
-        self.poll = poll
-        if self._ev is not None:
-            self._ev.cancel()
-        self._ev = kernel.after(poll, self._poll, prio=PRIO_INPUT)
-
     def transmit(self, byte: int, tick: int) -> None:
         if self.closed:
             return
@@ -160,16 +199,6 @@ class PtyEndpoint:
                 return b""
             raise
 
-    def _poll(self) -> None:
-        self._ev = None
-        if self.closed:
-            return
-        self._flush()
-        data = self._read()
-        if data:
-            inject(self, data)
-        self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
-
     def wait_input(self, timeout: float) -> bool:
         """Block the *host* (not the simulation) up to ``timeout`` seconds until the host program has
         written something; for tools and tests that pace the simulation on host input."""
@@ -178,25 +207,9 @@ class PtyEndpoint:
         ready, _, _ = select.select([self.master], [], [], timeout)
         return bool(ready)
 
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        if self._ev is not None:
-            self._ev.cancel()
-            self._ev = None
+    def _close_host(self) -> None:
         for fd in (self.master, self.slave):
             try:
                 os.close(fd)
             except OSError:
                 pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def __del__(self):
-        if not getattr(self, "closed", True):
-            self.close()

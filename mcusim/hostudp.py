@@ -29,17 +29,16 @@ from __future__ import annotations
 import socket
 
 from .errors import ConfigError
-from .hostserial import RX_BUFFER, inject
-from .kernel import PRIO_INPUT
+from .hostserial import RX_BUFFER, PolledEndpoint
 
 MAX_DATAGRAM = 65507
 
 
-class UdpEndpoint:
+class UdpEndpoint(PolledEndpoint):
     def __init__(self, mode: str, host: str, port: int, poll="1ms", rx_buffer: int = RX_BUFFER):
         if mode not in ("udpin", "udpout"):
             raise ConfigError(f"UDP link mode {mode!r}: expected udpin or udpout")
-        self.mode, self.host, self.port, self.poll_spec = mode, host, port, poll
+        self.mode, self.host, self.port = mode, host, port
         self.sock = None
         try:                                   # IPv4 or IPv6, as the host name resolves ("[::1]": IPv6)
             family, _, _, _, addr = socket.getaddrinfo(host.strip("[]"), port, socket.AF_UNSPEC,
@@ -56,32 +55,15 @@ class UdpEndpoint:
                 self.sock.close()
             raise ConfigError(f"--mavlink {mode}:{host}:{port}: {exc.strerror or exc}") from None
         self.sock.setblocking(False)
-        self.usart = None
-        self.poll = None
-        self._ev = None
+        self._init_poll(poll, rx_buffer)
+        self.kind = f"UDP link {mode}:{host}:{port}"
         self._out = bytearray()
-        self.dropped = 0
-        self.rx_buffer, self.rx_dropped = rx_buffer, 0
-        self.injected: list[tuple[int, bytes]] = []
-        self.closed = False
 
     @property
     def address(self) -> tuple:
         return self.sock.getsockname()
 
     # --- endpoint protocol ---------------------------------------------------------------------
-    def attach(self, usart) -> None:
-        self.usart = usart
-        kernel = usart.kernel
-        poll = self.poll_spec if isinstance(self.poll_spec, int) else kernel.timebase.ticks(self.poll_spec,
-                                                                                          rounding=True)
-        if poll <= 0:
-            raise ConfigError(f"UDP poll interval {self.poll_spec!r} must be at least one base tick")
-        self.poll = poll
-        if self._ev is not None:
-            self._ev.cancel()
-        self._ev = kernel.after(poll, self._poll, prio=PRIO_INPUT)
-
     def transmit(self, byte: int, tick: int) -> None:
         if not self.closed:
             self._out.append(byte)
@@ -100,7 +82,7 @@ class UdpEndpoint:
             except OSError:                 # no listener (ICMP refused), buffer full: the bytes are lost
                 self.dropped += len(data[i:i + MAX_DATAGRAM])
 
-    def _receive(self) -> bytes:
+    def _read(self) -> bytes:
         got = bytearray()
         while True:
             try:
@@ -114,23 +96,7 @@ class UdpEndpoint:
             got += data
         return bytes(got)
 
-    def _poll(self) -> None:
-        self._ev = None
-        if self.closed:
-            return
-        self._flush()
-        data = self._receive()
-        if data:
-            inject(self, data)
-        self._ev = self.usart.kernel.after(self.poll, self._poll, prio=PRIO_INPUT)
-
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        if self._ev is not None:
-            self._ev.cancel()
-            self._ev = None
+    def _close_host(self) -> None:
         self.sock.close()
 
 
