@@ -32,7 +32,7 @@ _FRAME_REGS = (A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R
                A.UC_ARM_REG_LR)
 _S = tuple(getattr(A, f"UC_ARM_REG_S{i}") for i in range(16))
 _MASKS = (A.UC_ARM_REG_BASEPRI, A.UC_ARM_REG_PRIMASK, A.UC_ARM_REG_FAULTMASK)
-_RETURN = (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP)
+_RETURN = (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP, A.UC_ARM_REG_FAULTMASK)
 _ENTRY = (A.UC_ARM_REG_XPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP, A.UC_ARM_REG_PC) + _FRAME_REGS
 
 
@@ -45,14 +45,23 @@ class ExceptionModel:
         self._entry_out = RegBlock(uc, (A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV,
                                         A.UC_ARM_REG_LR))
         self._return_in = RegBlock(uc, _RETURN)
-        frame = (*_FRAME_REGS, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV, A.UC_ARM_REG_CONTROL)
-        self._return_out = {psp: RegBlock(uc, (*frame, A.UC_ARM_REG_PSP if psp else A.UC_ARM_REG_MSP,
+        # unicorn ignores MSP/PSP/CONTROL writes (and reads MSP/PSP as 0) while the core is
+        # unprivileged (thread mode with CONTROL.nPRIV = 1): on return, CONTROL (nPRIV clear) and
+        # the stack pointer are written while still in handler mode, the final CONTROL last
+        # (in thread mode, where a change of SPSEL switches the banked SP).
+        self._return_out = {psp: RegBlock(uc, (*_FRAME_REGS, A.UC_ARM_REG_CONTROL,
+                                               A.UC_ARM_REG_PSP if psp else A.UC_ARM_REG_MSP,
+                                               A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV, A.UC_ARM_REG_CONTROL,
                                                A.UC_ARM_REG_PC)) for psp in (False, True)}
+        # entry from unprivileged thread mode: borrow handler mode to clear nPRIV (restored at entry)
+        self._privileged = RegBlock(uc, (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_IPSR))
+        self._faultmask = RegBlock(uc, (A.UC_ARM_REG_FAULTMASK,))
         self.vtor = 0
         self.prigroup = 0
         self.stkalign = True
         self.sleeponexit = False
         self.active: list[int] = []           # exception numbers, outermost first
+        self.event = False                    # the event register (WFE, SEV; B1.5.18)
 
     # --- reset ---------------------------------------------------------------------------------
     def reset(self, boot: int) -> None:
@@ -132,6 +141,10 @@ class ExceptionModel:
     def enter(self, exc: int, t: int, tail_return: int | None = None) -> None:
         uc, core = self.uc, self.core
         xpsr, control, msp, psp, ret, *regs = self._entry_in.read()
+        if tail_return is None and control & 1 and not xpsr & 0x1FF:
+            self._privileged.write((SVCALL, control & ~1, 0))
+            xpsr, _, msp, psp, ret, *regs = self._entry_in.read()
+        self.event = True                     # exception entry is a WFE wake-up event
         if tail_return is None:
             thread = not self.active and (xpsr & 0x1FF) == 0
             use_psp = thread and bool(control & 2)
@@ -178,8 +191,11 @@ class ExceptionModel:
     # --- return --------------------------------------------------------------------------------
     def exception_return(self, exc_return: int, t: int) -> None:
         uc, core = self.uc, self.core
-        exc, control, msp, psp = self._return_in.read()
+        exc, control, msp, psp, faultmask = self._return_in.read()
         exc &= 0x1FF
+        self.event = True
+        if faultmask & 1 and exc != 2:         # DeActivate(): FAULTMASK clears on return, except from NMI
+            self._faultmask.write((0,))
         if exc_return not in _VALID_RETURNS:
             self._fault(f"exception return with invalid EXC_RETURN {exc_return:#010x}", t)
         if not self.active or self.active[-1] != exc:
@@ -214,7 +230,7 @@ class ExceptionModel:
                                 (A.UC_ARM_REG_FPSCR, struct.unpack_from("<I", raw, 0x60)[0])])
         new_sp = (sp + size + (4 if xpsr & (1 << 9) else 0)) & 0xFFFFFFFF
         control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
-        self._return_out[use_psp].write((*words[:6], xpsr & ~(1 << 9), xpsr & 0xF8000000, control, new_sp,
-                                         words[6] & ~1))
+        self._return_out[use_psp].write((*words[:6], control & ~3, new_sp, xpsr & ~(1 << 9), xpsr & 0xF8000000,
+                                         control, words[6] & ~1))
         if thread and self.sleeponexit and not self.wakes():
             core.state = "sleep"
