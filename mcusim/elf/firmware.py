@@ -28,6 +28,18 @@ TYPES = {"bool": "<?", "u8": "<B", "i8": "<b", "u16": "<H", "i16": "<h", "u32": 
          "f32": "<f", "f64": "<d"}
 
 
+def _shortest_f32(value: float, raw: bytes) -> float:
+    """The shortest decimal that is this float32 (as C's printf("%g") round trip would give):
+    1.57f reads back as 1.57, not 1.5700000524520874, so it equals what the host published."""
+    if not math.isfinite(value):
+        return value
+    for digits in range(1, 10):
+        d = float(f"{value:.{digits}g}")
+        if struct.pack("<f", d) == raw:
+            return d
+    return value
+
+
 class ElfTopic:
     def __init__(self, name, address, type_, direction, count_addr):
         self.name, self.address, self.type, self.direction, self.count_addr = name, address, type_, direction, count_addr
@@ -140,7 +152,9 @@ class ElfFirmware:
         t = self.topics.get(name)
         if t is None:
             raise ConfigError(f"no topic {name!r}; topics: {', '.join(self.topics) or 'none'}")
-        return struct.unpack(t.fmt, self.core.read(t.address, t.size))[0]
+        raw = self.core.read(t.address, t.size)
+        value = struct.unpack(t.fmt, raw)[0]
+        return _shortest_f32(value, raw) if t.type == "f32" else value
 
     def summary(self) -> dict:
         core = self.core
