@@ -384,7 +384,8 @@ def cmd_run(args) -> int:
             else:
                 run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
         except McusimError as exc:      # a fault found during the run: say when
-            exc.sim_time = sim.time_s
+            if not getattr(exc, "has_time", False):      # (a core fault names its instant itself)
+                exc.sim_time = sim.time_s
             raise
         sim.close()
         s = sim.summary()

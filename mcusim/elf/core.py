@@ -71,7 +71,10 @@ _CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
 
 
 class CoreFault(McusimError):
-    """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ..."""
+    """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ...
+    The message names the simulated instant of the faulting instruction (``has_time``)."""
+
+    has_time = True
 
 
 def _thumb_len(halfword: int) -> int:
@@ -146,14 +149,32 @@ class CortexMCore:
                 return m, off
         return None, None
 
+    def _covered(self, address, length, kinds=("ram",)) -> bool:
+        """[address, address+length) lies in memories of these kinds, possibly several adjacent ones
+        (an exception frame may straddle the seam between DTCM and SRAM1)."""
+        end = address + length
+        while address < end:
+            for m in self.memories:
+                if m.kind in kinds and m.contains(address) is not None:
+                    base = next(b for b in (m.base, *m.aliases) if b <= address < b + m.size)
+                    address = base + m.size
+                    break
+            else:
+                return False
+        return True
+
     def _load(self, image):
         for seg in image.segments:
-            m, off = self._region(seg.address, len(seg.data))
-            if m is None:
+            if not self._covered(seg.address, len(seg.data), ("ram", "flash")):
                 names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
                 raise ConfigError(f"{image.path}: a loadable segment at {seg.address:#010x} "
                                   f"({len(seg.data)} bytes) lies outside the board's memory ({names})")
-            m.view[off:off + len(seg.data)] = seg.data
+            pos = 0
+            while pos < len(seg.data):               # region by region (a segment may span two)
+                m, off = self._region(seg.address + pos, 1)
+                n = min(len(seg.data) - pos, m.size - off)
+                m.view[off:off + n] = seg.data[pos:pos + n]
+                pos += n
         self._wfi, self._sev, self._unmask = set(), set(), set()
         for seg in image.segments:          # WFI: where the core sleeps; CPSIE/MSR: may unmask
             if not seg.executable:
@@ -361,6 +382,7 @@ class CortexMCore:
     def _fault(self, pc, what, t):
         self.state = "fault"
         self.fault = (pc, what)
+        self.kernel.now = t                  # the simulation stands at the faulting instruction
         secs = t / self.kernel.timebase.base_hz
         raise CoreFault(f"HardFault at t = {float(secs):.9f} s: {what} at PC {pc:#010x} ({self.where(pc)})")
 

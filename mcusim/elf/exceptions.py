@@ -159,7 +159,7 @@ class ExceptionModel:
             if fp:
                 frame += struct.pack("<16I", *(v & 0xFFFFFFFF for v in uc.reg_read_batch(_S)))
                 frame += struct.pack("<II", uc.reg_read(A.UC_ARM_REG_FPSCR) & 0xFFFFFFFF, 0)
-            if core._region(new, len(frame))[0] is None or core._region(new, len(frame))[0].kind != "ram":
+            if not core._covered(new, len(frame)):
                 self._fault(f"stacking for exception {exc} at SP {new:#010x} outside RAM (stack overflow?)", t)
             uc.mem_write(new, frame)
             exc_return = 0xFFFFFFE1 | (0 if fp else 0x10) | (8 if thread else 0) | (4 if use_psp else 0)
@@ -216,8 +216,7 @@ class ExceptionModel:
         fp = not exc_return & 0x10
         sp = psp if use_psp else msp
         size = 0x68 if fp else 0x20
-        m, _ = core._region(sp, size)
-        if m is None:
+        if not core._covered(sp, size, ("ram", "flash")):
             self._fault(f"unstacking from SP {sp:#010x} outside memory", t)
         raw = core.read(sp, size)
         words = struct.unpack_from("<8I", raw)

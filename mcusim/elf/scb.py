@@ -98,6 +98,7 @@ class CoreScb(Peripheral):
         if new & 0x7:
             raise UnsupportedConfiguration(self.name, "AIRCR", "SYSRESETREQ", new & 7, "(a reset request) is not modelled")
         self.exc.prigroup = (new >> 8) & 7
+        self.nvic._changed()                  # a new group split may let a pending one preempt now
 
     def _write_scr(self, old, new):
         self.exc.sleeponexit = bool(new & 2)
