@@ -62,6 +62,7 @@ class ExceptionModel:
         self.sleeponexit = False
         self.active: list[int] = []           # exception numbers, outermost first
         self.event = False                    # the event register (WFE, SEV; B1.5.18)
+        self.aspen = True                     # FPCCR.ASPEN: with 0, no FP frame (see enter)
 
     # --- reset ---------------------------------------------------------------------------------
     def reset(self, boot: int) -> None:
@@ -148,7 +149,7 @@ class ExceptionModel:
         if tail_return is None:
             thread = not self.active and (xpsr & 0x1FF) == 0
             use_psp = thread and bool(control & 2)
-            fp = bool(control & 4)
+            fp = bool(control & 4) and self.aspen   # (unicorn sets FPCA whatever ASPEN says)
             sp = psp if use_psp else msp
             size = 0x68 if fp else 0x20
             new = (sp - size) & 0xFFFFFFFF

@@ -69,6 +69,9 @@ def read_topic_map(elf_path: str, image) -> dict:
         for key in ("symbol", "type", "direction"):
             if key not in spec:
                 raise ConfigError(f"{where}: topic {name}: missing {key} = ...")
+        for key, value in spec.items():
+            if not isinstance(value, str):
+                raise ConfigError(f"{where}: topic {name}: {key} = {value!r}: expected a string")
         if spec["type"] not in TYPES:
             raise ConfigError(f"{where}: topic {name}: type {spec['type']!r} is not one of {', '.join(TYPES)}")
         if spec["direction"] not in ("sub", "pub"):
@@ -95,6 +98,11 @@ class ElfFirmware:
         self.core, self.image, self.path = core, core.image, str(path)
         self.symbols = self.image.symbols
         self.topics = read_topic_map(path, self.image)
+        for t in self.topics.values():        # the host stores into them: they must be RAM
+            for what, address, size in ((t.name, t.address, t.size), (f"{t.name} (count)", t.count_addr, 4)):
+                if address is not None and not core._covered(address, size):
+                    raise ConfigError(f"{Path(path).with_suffix('.topics.toml')}: topic {what}: its symbol at "
+                                      f"{address:#010x} ({size} bytes) is not in the board's RAM")
         self._held = []
         if "/motor1/set_pos" in self.topics:      # the summary's set point per motor, as the ports give it
             self.set_point = lambda n: self.topic(f"/motor{n}/set_pos")
