@@ -178,3 +178,12 @@ def test_a_bad_topic_map_value_is_a_config_error(tmp_path, capsys, body, message
         mcusim.load("nucleo-f746", firmware=str(tmp_path / "app.elf"))
     assert main(["run", "nucleo-f746", "--firmware", str(tmp_path / "app.elf"), "-q", "--duration", "1us"]) == 2
     assert "Traceback" not in capsys.readouterr().err
+
+
+# --- review finding 14: the bench's command comes from the profile: the error says so ----------------------
+def test_bench_with_an_image_lacking_the_profiles_topics_names_the_bench_set_table(tmp_path, capsys):
+    shutil.copy(BIN / "ticks.elf", tmp_path / "my.elf")
+    assert main(["bench", "nucleo-f746", "--firmware", str(tmp_path / "my.elf"), "--repeat", "1",
+                 "--duration", "1ms"]) == 2
+    err = capsys.readouterr().err
+    assert "[bench.set]" in err and "/motor1/set_pos" in err and "Traceback" not in err
