@@ -17,7 +17,13 @@ takes it when the architecture says so. How it runs:
   (``count=1``), answering its accesses from the record (no second side effect): the quantum
   ends exactly after that instruction.
 * **WFI** ends ``emu_start``; the core sleeps (no kernel event at all) until the NVIC reports an
-  interrupt that can wake it.
+  interrupt that can wake it. A code hook on each WFI of the image tells a WFI that is the
+  quantum's last instruction from a quantum that simply ran out.
+* **WFE, YIELD, SEV**: unicorn ends the run on WFE and YIELD (reported as an invalid
+  instruction, PC past them) and runs SEV as a NOP (a code hook sets the event register). WFE
+  consumes a set event register, else sleeps as WFI.
+* **The access record** of the instruction making a peripheral access is keyed by (emu_start
+  call, instruction index), so a replay answers from that instruction's own accesses.
 * **Exceptions** are the simulator's (unicorn has none): see :mod:`mcusim.elf.exceptions`.
 * **Faults** (unmapped or protected access, undefined instruction, a bus fault in a register
   model, an escalated SVC) stop the run with :class:`CoreFault` naming the PC, the function and

@@ -14,6 +14,11 @@
   pending exception can preempt the context returned to, it is tail-chained (no unstacking;
   it costs the entry latency); else the frame is popped and the mode, stack and FPCA restored.
 * SVC is taken at once if its priority can preempt, else it escalates to a fault (reported).
+* Unprivileged thread mode (CONTROL.nPRIV = 1): unicorn hides MSP/PSP and ignores CONTROL
+  writes then, so entry borrows handler mode to clear nPRIV first (restored in the frame's
+  CONTROL), and return writes the stack pointer before the final CONTROL.
+* DeActivate: FAULTMASK clears on return from any exception but NMI; entry and return set the
+  event register (WFE). FPCCR.ASPEN = 0: no FP frame.
 """
 
 from __future__ import annotations
