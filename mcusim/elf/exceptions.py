@@ -68,6 +68,7 @@ class ExceptionModel:
         self.active: list[int] = []           # exception numbers, outermost first
         self.event = False                    # the event register (WFE, SEV; B1.5.18)
         self.aspen = True                     # FPCCR.ASPEN: with 0, no FP frame (see enter)
+        self._entering = None                 # (exception, tick of its first instruction) during entry
 
     # --- reset ---------------------------------------------------------------------------------
     def reset(self, boot: int) -> None:
@@ -137,9 +138,29 @@ class ExceptionModel:
     def take_pending(self, t: int) -> bool:
         best = self._best()
         if best is None or best[0] >= self.execution_priority():
+            self._entering = None             # the handler's first instruction runs now
             return False
+        entering = self._entering
+        if entering is not None and entering[1] == t and self.active and self.active[-1] == entering[0]:
+            self._late_arrival(best[1], t)
+            return True
         self.enter(best[1], t)
         return True
+
+    def _late_arrival(self, exc: int, t: int) -> None:
+        """A more urgent exception became pending while another was being entered (B1.5.6 note;
+        Cortex-M7 TRM "late-arriving"): it takes the frame already stacked and runs first; the
+        one it displaced stays pending and tail-chains after it."""
+        core, nvic = self.core, self.nvic
+        old = self.active.pop()
+        core.stack.pop()
+        nvic.active.discard(old - 16)
+        nvic.pending.add(old - 16)
+        core.isr_count[old - 16] -= 1
+        xpsr, control, _msp, _psp, _pc, *regs = self._entry_in.read()
+        self._entry_out.write((control, (xpsr & ~0x1FF) | exc, xpsr & 0xF8000000, regs[5]))
+        self._vector(exc, t)
+        core._schedule(t)
 
     def _fault(self, what, t):
         self.core._fault(self.uc.reg_read(A.UC_ARM_REG_PC), what, t)
@@ -174,6 +195,15 @@ class ExceptionModel:
             exc_return = tail_return
         self._entry_out.write((control & ~6, (xpsr & 0xF8000000) | (1 << 24) | exc, xpsr & 0xF8000000,
                                exc_return))
+        self._vector(exc, t)
+        ticks = core.entry_latency * core.period
+        core.busy_ticks += ticks
+        self._entering = (exc, t + ticks)
+        core._schedule(t + ticks)
+
+    def _vector(self, exc: int, t: int) -> None:
+        """PC = the handler of ``exc``; ``exc`` becomes active."""
+        uc, core = self.uc, self.core
         m, off = core._region(self.vtor + 4 * exc, 4)
         vector = struct.unpack_from("<I", m.view, off)[0] if m is not None else 0
         if not vector & 1 or core._region(vector & ~1, 2)[0] is None:
@@ -185,9 +215,6 @@ class ExceptionModel:
         self.nvic.acknowledge(irqn)
         core.isr_count[irqn] = core.isr_count.get(irqn, 0) + 1
         core.stack.append(exc)
-        ticks = core.entry_latency * core.period
-        core.busy_ticks += ticks
-        core._schedule(t + ticks)
 
     def svc(self, t: int) -> None:
         if self.priority(SVCALL) >= self.execution_priority():

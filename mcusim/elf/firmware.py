@@ -35,8 +35,11 @@ def _shortest_f32(value: float, raw: bytes) -> float:
         return value
     for digits in range(1, 10):
         d = float(f"{value:.{digits}g}")
-        if struct.pack("<f", d) == raw:
-            return d
+        try:
+            if struct.pack("<f", d) == raw:
+                return d
+        except OverflowError:               # rounded past the largest float32
+            continue
     return value
 
 

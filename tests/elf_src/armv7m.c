@@ -15,7 +15,7 @@
 #define SYST_CVR R(0xE000E018)
 #define ISER0 R(0xE000E100)
 #define ISPR0 R(0xE000E200)
-volatile uint32_t which = 0;
+volatile uint32_t which = 0, delay = 0;
 volatile uint32_t res[16], olog[8], nlog, ticks, wakes;
 static void L(uint32_t x) { olog[nlog++] = x; }
 
@@ -42,7 +42,17 @@ void IRQ2_Handler(void) {                 /* 6: raising PRIGROUP's split lets IR
     L(0xB1);
 }
 void IRQ3_Handler(void) { __asm volatile("cpsid f"); res[7]++; }   /* 3: FAULTMASK set, then return */
-void SysTick_Handler(void) { ticks++; }
+/* 12: IRQ0 and SysTick record the return address in their frame (res[0], res[1]); SysTick also
+ * ICSR (res[2]), the first time */
+__attribute__((naked)) void IRQ0_Handler(void) {
+    __asm volatile("mrs r1, msp\n ldr r2, [r1, #24]\n ldr r0, =res\n str r2, [r0]\n bx lr\n .ltorg");
+}
+__attribute__((naked)) void SysTick_Handler(void) {
+    __asm volatile("ldr r0, =ticks\n ldr r1, [r0]\n adds r1, #1\n str r1, [r0]\n"
+                   "ldr r0, =res\n ldr r3, [r0, #4]\n cbnz r3, 1f\n mrs r1, msp\n ldr r2, [r1, #24]\n"
+                   "str r2, [r0, #4]\n ldr r2, =0xE000ED04\n ldr r2, [r2]\n str r2, [r0, #8]\n"
+                   "1: bx lr\n .ltorg");
+}
 /* 5, 7, 9: PendSV records MSP, SHCSR and EXC_RETURN */
 __attribute__((naked)) void PendSV_Handler(void) {
     __asm volatile("ldr r1, =res\n mrs r0, msp\n str r0, [r1, #36]\n ldr r0, =0xE000ED24\n ldr r0, [r0]\n"
@@ -110,6 +120,15 @@ int main(void) {
     case 10:                              /* TIM2 free running; the loop's only peripheral access is CNT */
         R(0x40023840) |= 1; R(0x4000002C) = 0xFFFFFFFF; R(0x40000000) = 1;
         for (;;) { res[0] = res[1]; res[1] = R(0x40000024); }
+    case 12:                              /* SysTick (priority 0) comes `delay` loops after IRQ0 (0x80) */
+        R8(0xE000ED23) = 0x00; R8(0xE000E400) = 0x80; ISER0 = 1;
+        SYST_RVR = 199; SYST_CVR = 0; SYST_CSR = 7;
+        for (volatile uint32_t i = 0; i < delay; i++) {}
+        R(0xE000EF00) = 0;                /* STIR: pend IRQ0 */
+        __asm volatile("nop; nop; nop; nop");
+        for (volatile int i = 0; i < 100; i++) {}
+        SYST_CSR = 0;
+        break;
     case 11:                              /* WFI with no interrupt enabled: never wakes */
         SYST_RVR = 9; SYST_CVR = 0; SYST_CSR = 5;
         for (;;) { __asm volatile("wfi"); wakes++; }
