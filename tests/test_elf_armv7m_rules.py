@@ -208,3 +208,19 @@ def test_late_arrival_takes_the_frame_being_stacked_and_the_first_exception_tail
             late += 1
             assert icsr & 0x1FF == 15 and (icsr >> 12) & 0x1FF == 16 and icsr & (1 << 11), (delay, hex(icsr))
     assert late >= 1
+
+
+# --- B1.5.19 SCR.SLEEPONEXIT: sleep on return to thread mode, without unstacking -------------------------------
+def test_sleeponexit_sleeps_with_the_frame_still_stacked_and_the_thread_never_runs_again():
+    """SysTick every 1000 cycles; thread mode sets SLEEPONEXIT then counts in `wakes`. After the
+    first handler returns, the core sleeps on the stacked frame (MSP stays 32 bytes below the
+    thread's SP) and each later SysTick tail-chains onto it: the thread counts no more."""
+    sim = run(13, "30us")
+    thread_sp = res(sim, 4)[3]
+    wakes, ticks = sim.mcu.read32(sym(sim, "wakes")), sim.mcu.read32(sym(sim, "ticks"))
+    assert ticks >= 5 and sim.mcu.cpu.state == "sleep"
+    assert sim.mcu.cpu.reg("msp") == (thread_sp - 32) & ~7
+    sim.run(seconds="30us")
+    assert sim.mcu.read32(sym(sim, "wakes")) == wakes
+    assert sim.mcu.read32(sym(sim, "ticks")) >= ticks + 5
+    assert sim.mcu.cpu.reg("msp") == (thread_sp - 32) & ~7

@@ -69,6 +69,7 @@ class ExceptionModel:
         self.event = False                    # the event register (WFE, SEV; B1.5.18)
         self.aspen = True                     # FPCCR.ASPEN: with 0, no FP frame (see enter)
         self._entering = None                 # (exception, tick of its first instruction) during entry
+        self.sleep_return = None              # EXC_RETURN of a return that went to sleep (SLEEPONEXIT)
 
     # --- reset ---------------------------------------------------------------------------------
     def reset(self, boot: int) -> None:
@@ -139,7 +140,14 @@ class ExceptionModel:
         best = self._best()
         if best is None or best[0] >= self.execution_priority():
             self._entering = None             # the handler's first instruction runs now
+            if self.sleep_return is not None:  # woken from SLEEPONEXIT by one that cannot preempt
+                ret, self.sleep_return = self.sleep_return, None
+                self._unstack(ret, t)
             return False
+        if self.sleep_return is not None:      # woken from SLEEPONEXIT: tail-chain onto the frame
+            ret, self.sleep_return = self.sleep_return, None
+            self.enter(best[1], t, tail_return=ret)
+            return True
         entering = self._entering
         if entering is not None and entering[1] == t and self.active and self.active[-1] == entering[0]:
             self._late_arrival(best[1], t)
@@ -223,8 +231,8 @@ class ExceptionModel:
 
     # --- return --------------------------------------------------------------------------------
     def exception_return(self, exc_return: int, t: int) -> None:
-        uc, core = self.uc, self.core
-        exc, control, msp, psp, faultmask = self._return_in.read()
+        core = self.core
+        exc, _control, _msp, _psp, faultmask = self._return_in.read()
         exc &= 0x1FF
         self.event = True
         if faultmask & 1 and exc != 2:         # DeActivate(): FAULTMASK clears on return, except from NMI
@@ -245,6 +253,18 @@ class ExceptionModel:
         if best is not None and best[0] < self.execution_priority():
             self.enter(best[1], t, tail_return=exc_return)          # tail-chaining
             return
+        if thread and self.sleeponexit and not self.wakes():
+            # SLEEPONEXIT: sleep with the frame still stacked; the interrupt that wakes the core
+            # tail-chains onto it (take_pending), else the frame is popped then
+            self.sleep_return = exc_return
+            core.state = "sleep"
+            return
+        self._unstack(exc_return, t)
+
+    def _unstack(self, exc_return: int, t: int) -> None:
+        uc, core = self.uc, self.core
+        _exc, control, msp, psp, _fm = self._return_in.read()
+        thread = bool(exc_return & 8)
         use_psp = bool(exc_return & 4)
         fp = not exc_return & 0x10
         sp = psp if use_psp else msp
@@ -264,5 +284,3 @@ class ExceptionModel:
         control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
         self._return_out[use_psp].write((*words[:6], control & ~3, new_sp, xpsr & ~(1 << 9), xpsr & 0xF8000000,
                                          control, words[6] & ~1))
-        if thread and self.sleeponexit and not self.wakes():
-            core.state = "sleep"

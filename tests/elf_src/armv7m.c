@@ -129,6 +129,14 @@ int main(void) {
         for (volatile int i = 0; i < 100; i++) {}
         SYST_CSR = 0;
         break;
+    case 13: {                            /* SCR.SLEEPONEXIT: the thread never runs again */
+        uint32_t sp;
+        __asm volatile("mov %0, sp" : "=r"(sp));
+        res[3] = sp;
+        SYST_RVR = 999; SYST_CVR = 0; SYST_CSR = 7;
+        R(0xE000ED10) = 2;
+        for (;;) wakes++;
+    }
     case 11:                              /* WFI with no interrupt enabled: never wakes */
         SYST_RVR = 9; SYST_CVR = 0; SYST_CSR = 5;
         for (;;) { __asm volatile("wfi"); wakes++; }
