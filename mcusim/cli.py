@@ -389,7 +389,8 @@ def cmd_run(args) -> int:
             else:
                 run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
         except McusimError as exc:      # a fault found during the run: say when
-            exc.sim_time = sim.time_s
+            if not getattr(exc, "has_time", False):      # (a core fault names its instant itself)
+                exc.sim_time = sim.time_s
             raise
         sim.close()
         s = sim.summary()
@@ -490,8 +491,15 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
     profile = read_profile(board)[0]
     scenario = profile.get("bench", {}).get("set") or profile.get("run", {}).get("set", {})
     runs = []
+    table = "[bench.set]" if profile.get("bench", {}).get("set") else "[run.set]"
     for _ in range(repeat):
-        sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
+        try:
+            sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
+        except ConfigError as exc:
+            if firmware is None or not scenario:
+                raise
+            raise ConfigError(f"the bench sends the board profile's {table} command "
+                              f"({', '.join(scenario)}) to the firmware: {exc}") from None
         t0 = time.perf_counter()
         try:
             sim.run(seconds=duration)

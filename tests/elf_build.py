@@ -13,7 +13,7 @@ from pathlib import Path
 
 SRC = Path(__file__).parent / "elf_src"
 BIN = Path(__file__).parent / "elf_bin"
-IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "sched", "masks", "lpc_ticks")
+IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "sched", "masks", "lpc_ticks", "armv7m")
 COMMON = ["-mthumb", "-O2", "-g", "-ffreestanding", "-nostartfiles", "-nostdlib", "-Wl,--gc-sections",
           "-Wl,--build-id=none", "-ffile-prefix-map=" + str(SRC) + "=."]
 STM32F746 = ["-mcpu=cortex-m7", "-mfpu=fpv5-sp-d16", "-mfloat-abi=hard", "-T", "link.ld"]

@@ -64,6 +64,7 @@ def test_shpr3_sets_the_priorities_of_pendsv_and_systick(sim):
 
 
 def test_dwt_cyccnt_counts_core_cycles_only_while_enabled(sim):
+    sim.mcu.write32(0xE000EDFC, 1 << 24)                      # DEMCR.TRCENA powers the DWT
     sim.mcu.write32(0xE0001000, 1)
     sim.run(cycles=1000)
     assert sim.mcu.read32(0xE0001004) == 1000

@@ -256,11 +256,20 @@ def test_hardfault_is_reported_with_pc_symbol_and_time(which, what, where):
     assert what in str(info.value) and f"({where}" in str(info.value)
 
 
-def test_a_fault_in_the_cli_names_the_simulated_time(capsys):
+def test_a_fault_in_the_cli_names_the_simulated_time_once(capsys):
+    # review finding 10: the message gave the fault's instant and then the quantum's start
     assert main(["run", "nucleo-f746", "--firmware", elf("faults"), "--set", "/which=1", "-q",
                  "--duration", "1ms"]) == 1
     err = capsys.readouterr().err
-    assert "HardFault" in err and "bad_read" in err and "simulated t =" in err
+    assert "HardFault at t = 0.0000" in err and "bad_read" in err and err.count(" t = ") == 1, err
+
+
+def test_after_a_fault_the_simulation_stands_at_the_faulting_instruction():
+    sim = load("faults", overrides={"/which": 1})
+    with pytest.raises(CoreFault) as info:
+        sim.run(seconds="1ms")
+    said = float(str(info.value).split("t = ")[1].split(" s")[0])
+    assert said > 0 and sim.time_s == pytest.approx(said, abs=1e-9)
 
 
 # --- the images match their sources ------------------------------------------------------------------

@@ -3,6 +3,7 @@ gdb needed), and a gdb-multiarch batch session when gdb-multiarch is installed."
 
 from __future__ import annotations
 
+import re
 import shutil
 import socket
 import subprocess
@@ -63,6 +64,26 @@ def test_halted_at_reset_with_sp_and_pc_from_the_vector_table():
     assert out["stop"] == "T05"
     assert out["sp"] == 0x20050000 and out["pc"] == sim.firmware.symbols["Reset_Handler"]
     assert out["msp"] == out["sp"] and out["control"] == 0        # thread mode on MSP after reset
+
+
+def test_the_target_description_has_the_fpu_registers_gdb_needs_for_float_variables():
+    """gdb's ARM target finds d0-d15 and fpscr in an org.gnu.gdb.arm.vfp feature (it then shows
+    s0-s31 as their halves and reads hard-float arguments, DWARF registers 64-95, from them)."""
+    def script(c, syms, out):
+        xml = c.ask("qXfer:features:read:target.xml:0,fff")[1:]
+        out["vfp"] = '<feature name="org.gnu.gdb.arm.vfp">' in xml
+        out["d0"] = re.search(r'<reg name="d0" bitsize="64" regnum="(\d+)"', xml)
+        n = int(out["d0"].group(1))
+        # d1 = s3:s2; write it through P, read the halves through the core
+        assert c.ask(f"P{n + 1:x}=" + (0x4000000040400000).to_bytes(8, "little").hex()) == "OK"
+        out["p"] = c.ask(f"p{n + 1:x}")
+        out["g_len"] = len(c.ask("g"))
+        c.ask("D")
+    sim, out = session(script, duration="1us")
+    assert out["vfp"] and out["d0"]
+    assert sim.mcu.cpu.reg("s2") == 0x40400000 and sim.mcu.cpu.reg("s3") == 0x40000000   # 3.0f, 2.0f
+    assert out["p"] == (0x4000000040400000).to_bytes(8, "little").hex()
+    assert out["g_len"] == 2 * (23 * 4 + 16 * 8 + 4)       # 23 core and system registers
 
 
 def test_simulated_time_stands_still_while_halted_and_a_breakpoint_stops_at_its_address():
@@ -170,6 +191,7 @@ def test_gdb_multiarch_batch_session(tmp_path):
             ["gdb-multiarch", "-batch", "-nx", "-ex", "set pagination off", "-ex", f"file {TICKS}",
              "-ex", f"target extended-remote :{port}", "-ex", "info registers pc",
              "-ex", "break SysTick_Handler", "-ex", "continue", "-ex", "print ticks",
+             "-ex", "set $s5 = 2.5", "-ex", "print $s5",
              "-ex", "stepi", "-ex", "info registers xpsr", "-ex", "delete",
              "-ex", "watch tim2_count", "-ex", "continue", "-ex", "delete", "-ex", "detach"],
             check=False, capture_output=True, text=True, timeout=120)
@@ -177,8 +199,8 @@ def test_gdb_multiarch_batch_session(tmp_path):
         assert "<Reset_Handler>" in out
         assert "Breakpoint 1, SysTick_Handler" in out
         assert "$1 = 0" in out                            # the first tick, before its increment
+        assert "$2 = 2.5" in out                          # s5 (half of d2) through the vfp feature
         assert "xpsr           0x100000f" in out          # IPSR 15: SysTick
-        import re
         old, new = map(int, re.search(r"Old value = (\d+)\nNew value = (\d+)", out).groups())
         assert new == old + 1
     finally:

@@ -66,13 +66,16 @@ def test_example_command_runs_as_documented(tmp_path, monkeypatch, capsys, where
     monkeypatch.chdir(tmp_path)
     argv = shlex.split(cmd)[1:]
     assert ">" not in argv
-    if argv[0] in ("run", "trace", "bench"):
+    # a compiled image's scenario runs in full (a few seconds): shortened, its failures would
+    # hide among the expectations an early end cannot reach (it once failed "set point taken")
+    full = "--scenario" in argv and "--firmware" in argv
+    if argv[0] in ("run", "trace", "bench") and not full:
         argv += ["--duration", SHORT["exit1" if expected == 1 else "default"]]
     if argv[0] == "bench":
         argv += ["--repeat", "1"]
     rc = main(argv)
     err = capsys.readouterr().err
-    allowed = {expected, 1} if "--scenario" in argv else {expected}
+    allowed = {expected, 1} if "--scenario" in argv and not full else {expected}
     assert rc in allowed, (cmd, rc, err)
     assert "Traceback" not in err and ("error:" not in err or expected == 1), err
     for opt in ("--vcd", "--csv", "--summary", "--plot", "--json", "--register-log"):

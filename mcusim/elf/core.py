@@ -17,7 +17,13 @@ takes it when the architecture says so. How it runs:
   (``count=1``), answering its accesses from the record (no second side effect): the quantum
   ends exactly after that instruction.
 * **WFI** ends ``emu_start``; the core sleeps (no kernel event at all) until the NVIC reports an
-  interrupt that can wake it.
+  interrupt that can wake it. A code hook on each WFI of the image tells a WFI that is the
+  quantum's last instruction from a quantum that simply ran out.
+* **WFE, YIELD, SEV**: unicorn ends the run on WFE and YIELD (reported as an invalid
+  instruction, PC past them) and runs SEV as a NOP (a code hook sets the event register). WFE
+  consumes a set event register, else sleeps as WFI.
+* **The access record** of the instruction making a peripheral access is keyed by (emu_start
+  call, instruction index), so a replay answers from that instruction's own accesses.
 * **Exceptions** are the simulator's (unicorn has none): see :mod:`mcusim.elf.exceptions`.
 * **Faults** (unmapped or protected access, undefined instruction, a bus fault in a register
   model, an escalated SVC) stop the run with :class:`CoreFault` naming the PC, the function and
@@ -34,6 +40,7 @@ from unicorn import Uc, UcError
 from unicorn import arm_const as A
 from unicorn.unicorn_const import (
     UC_ARCH_ARM,
+    UC_ERR_INSN_INVALID,
     UC_HOOK_BLOCK,
     UC_HOOK_CODE,
     UC_HOOK_INTR,
@@ -70,7 +77,10 @@ _CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
 
 
 class CoreFault(McusimError):
-    """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ..."""
+    """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ...
+    The message names the simulated instant of the faulting instruction (``has_time``)."""
+
+    has_time = True
 
 
 def _thumb_len(halfword: int) -> int:
@@ -101,6 +111,10 @@ class CortexMCore:
         uc.hook_add(UC_HOOK_BLOCK, self._on_block)
         for addr in sorted(self._unmask):    # after an instruction that may unmask: take what is pending
             uc.hook_add(UC_HOOK_CODE, self._on_unmask, begin=addr, end=addr)
+        for addr in sorted(self._wfi):       # a WFI about to execute (even as a quantum's last instruction)
+            uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=addr, end=addr)
+        for addr in sorted(self._sev):       # unicorn runs SEV as a NOP: it sets the event register here
+            uc.hook_add(UC_HOOK_CODE, self._on_sev, begin=addr, end=addr)
         uc.hook_add(UC_HOOK_INTR, self._on_intr)
         uc.hook_add(UC_HOOK_MEM_READ_UNMAPPED | UC_HOOK_MEM_WRITE_UNMAPPED | UC_HOOK_MEM_FETCH_UNMAPPED
                     | UC_HOOK_MEM_PROT, self._on_bad_access)
@@ -115,7 +129,9 @@ class CortexMCore:
         self._check = False         # an interrupt was pended during an access
         self._stop = None           # why the emulation stopped early
         self._replay = []
-        self._acc_pc, self._acc = None, []
+        self._acc_pc, self._acc, self._acc_key = None, [], None
+        self._quantum = 0           # numbers the emu_start calls: an access record is per instruction
+        self._wfi_at = None
         self.debug = None           # a gdb server: breakpoints, watchpoints, halts
         self._debug_after = None
         self._replaying = False
@@ -139,15 +155,33 @@ class CortexMCore:
                 return m, off
         return None, None
 
+    def _covered(self, address, length, kinds=("ram",)) -> bool:
+        """[address, address+length) lies in memories of these kinds, possibly several adjacent ones
+        (an exception frame may straddle the seam between DTCM and SRAM1)."""
+        end = address + length
+        while address < end:
+            for m in self.memories:
+                if m.kind in kinds and m.contains(address) is not None:
+                    base = next(b for b in (m.base, *m.aliases) if b <= address < b + m.size)
+                    address = base + m.size
+                    break
+            else:
+                return False
+        return True
+
     def _load(self, image):
         for seg in image.segments:
-            m, off = self._region(seg.address, len(seg.data))
-            if m is None:
+            if not self._covered(seg.address, len(seg.data), ("ram", "flash")):
                 names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
                 raise ConfigError(f"{image.path}: a loadable segment at {seg.address:#010x} "
                                   f"({len(seg.data)} bytes) lies outside the board's memory ({names})")
-            m.view[off:off + len(seg.data)] = seg.data
-        self._wfi, self._unmask = set(), set()
+            pos = 0
+            while pos < len(seg.data):               # region by region (a segment may span two)
+                m, off = self._region(seg.address + pos, 1)
+                n = min(len(seg.data) - pos, m.size - off)
+                m.view[off:off + n] = seg.data[pos:pos + n]
+                pos += n
+        self._wfi, self._sev, self._unmask = set(), set(), set()
         for seg in image.segments:          # WFI: where the core sleeps; CPSIE/MSR: may unmask
             if not seg.executable:
                 continue
@@ -156,6 +190,8 @@ class CortexMCore:
                 hw = d[i] | d[i + 1] << 8
                 if hw == 0xBF30:
                     self._wfi.add(seg.address + i)
+                elif hw == 0xBF40:
+                    self._sev.add(seg.address + i)
                 elif hw & 0xFFF8 == 0xB660:                        # CPSIE i/f
                     self._unmask.add(seg.address + i + 2)
                 elif hw & 0xFFF0 == 0xF380 and i + 3 < len(d) and (d[i + 2] | d[i + 3] << 8) in (
@@ -260,6 +296,11 @@ class CortexMCore:
                 self._fault(stop[1], stop[2], t)
             elif kind == "wfi" and not self.exc.wakes():
                 self.state = "sleep"
+            elif kind == "wfe":
+                if self.exc.event:
+                    self.exc.event = False      # WFE consumes a set event register and goes on
+                elif not self.exc.wakes():
+                    self.state = "sleep"
             elif kind == "exc_return":
                 self.exc.exception_return(stop[1], t)
             elif kind == "svc":
@@ -278,6 +319,8 @@ class CortexMCore:
         self._q_base, self._blk_addr, self._blk_n = 0, None, 0
         self._in_emu = True
         self._check = False
+        self._quantum += 1
+        self._wfi_at = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         try:
             uc.emu_start(pc | 1, 0, count=n)
@@ -290,6 +333,13 @@ class CortexMCore:
                 self.debug._skip_bp = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         stop = self._stop
+        if err is not None and stop is None and err.errno == UC_ERR_INSN_INVALID:
+            hint = {0xBF10: "yield", 0xBF20: "wfe"}.get(self._halfword(pc - 2))
+            if hint is not None:
+                # unicorn ends the run on YIELD and WFE (QEMU's EXCP_YIELD, reported as an invalid
+                # instruction) with PC past them: both are valid hints that retire
+                err, self._stop = None, ((hint,) if hint == "wfe" else None)
+                return self._q_base + self._index(self._blk_addr, pc)
         if err is not None and (stop is None or stop[0] != "fault"):
             self._stop = ("fault", pc, self._uc_error_text(err, pc))
             return self._q_base + self._index(self._blk_addr, pc)
@@ -298,7 +348,7 @@ class CortexMCore:
         if stop is not None and stop[0] == "fault":
             return self._q_base + self._index(self._blk_addr, stop[1])
         retired = self._q_base + self._index(self._blk_addr, pc) if self._blk_addr is not None else 0
-        if stop is None and retired < n and ((pc - 2) in self._wfi or self._halfword(pc - 2) == 0xBF30):
+        if stop is None and (self._wfi_at == pc - 2 or (retired < n and self._halfword(pc - 2) == 0xBF30)):
             self._stop = ("wfi",)          # (the second test: a WFI in code the image copied to RAM)
         if stop is not None and stop[0] == "replay":
             # the instruction was abandoned after its access: finish it alone, answering its
@@ -308,6 +358,7 @@ class CortexMCore:
             self._in_emu = self._replaying = True
             self._q_t0 = t0 + retired * self.step_ticks
             self._q_base, self._blk_addr, self._blk_n = 0, None, 0
+            self._quantum += 1
             try:
                 uc.emu_start(pc | 1, 0, count=1)
             except UcError as exc:
@@ -337,6 +388,7 @@ class CortexMCore:
     def _fault(self, pc, what, t):
         self.state = "fault"
         self.fault = (pc, what)
+        self.kernel.now = t                  # the simulation stands at the faulting instruction
         secs = t / self.kernel.timebase.base_hz
         raise CoreFault(f"HardFault at t = {float(secs):.9f} s: {what} at PC {pc:#010x} ({self.where(pc)})")
 
@@ -375,6 +427,12 @@ class CortexMCore:
                           f"{8 * size}-bit {what} memory at {address:#010x}{extra}")
         return False
 
+    def _on_wfi(self, uc, address, size, _):
+        self._wfi_at = address
+
+    def _on_sev(self, uc, address, size, _):
+        self.exc.event = True
+
     def _on_unmask(self, uc, address, size, _):
         if self._in_emu and self._stop is None and not self._replay and self.exc.can_preempt():
             self._stop = ("unmask",)
@@ -396,20 +454,20 @@ class CortexMCore:
             self._stop = ("fault", pc, _CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
         uc.emu_stop()
 
-    def _access_time(self, pc):
-        return self._q_t0 + (self._q_base + self._index(self._blk_addr, pc)) * self.step_ticks
 
     def _mmio(self, uc, address, size, value):
         """One peripheral access by the firmware; value None for a read. Returns the read value."""
         if self._replaying and self._replay:   # the replayed instruction's recorded accesses
             return self._replay.pop(0)[2]
         pc = uc.reg_read(A.UC_ARM_REG_PC)
-        if pc != self._acc_pc:
-            self._acc_pc, self._acc = pc, []
+        index = self._q_base + self._index(self._blk_addr, pc)
+        key = (self._quantum, index)
+        if key != self._acc_key:               # a new instruction: a new record of its accesses
+            self._acc_pc, self._acc, self._acc_key = pc, [], key
         if self._stop is not None:
             return 0
         k = self.kernel
-        k.now = self._access_time(pc)
+        k.now = self._q_t0 + index * self.step_ticks
         try:
             if value is None:
                 result = self.bus.read(address, size)

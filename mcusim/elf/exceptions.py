@@ -14,6 +14,11 @@
   pending exception can preempt the context returned to, it is tail-chained (no unstacking;
   it costs the entry latency); else the frame is popped and the mode, stack and FPCA restored.
 * SVC is taken at once if its priority can preempt, else it escalates to a fault (reported).
+* Unprivileged thread mode (CONTROL.nPRIV = 1): unicorn hides MSP/PSP and ignores CONTROL
+  writes then, so entry borrows handler mode to clear nPRIV first (restored in the frame's
+  CONTROL), and return writes the stack pointer before the final CONTROL.
+* DeActivate: FAULTMASK clears on return from any exception but NMI; entry and return set the
+  event register (WFE). FPCCR.ASPEN = 0: no FP frame.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ _FRAME_REGS = (A.UC_ARM_REG_R0, A.UC_ARM_REG_R1, A.UC_ARM_REG_R2, A.UC_ARM_REG_R
                A.UC_ARM_REG_LR)
 _S = tuple(getattr(A, f"UC_ARM_REG_S{i}") for i in range(16))
 _MASKS = (A.UC_ARM_REG_BASEPRI, A.UC_ARM_REG_PRIMASK, A.UC_ARM_REG_FAULTMASK)
-_RETURN = (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP)
+_RETURN = (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP, A.UC_ARM_REG_FAULTMASK)
 _ENTRY = (A.UC_ARM_REG_XPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_MSP, A.UC_ARM_REG_PSP, A.UC_ARM_REG_PC) + _FRAME_REGS
 
 
@@ -45,14 +50,26 @@ class ExceptionModel:
         self._entry_out = RegBlock(uc, (A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV,
                                         A.UC_ARM_REG_LR))
         self._return_in = RegBlock(uc, _RETURN)
-        frame = (*_FRAME_REGS, A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV, A.UC_ARM_REG_CONTROL)
-        self._return_out = {psp: RegBlock(uc, (*frame, A.UC_ARM_REG_PSP if psp else A.UC_ARM_REG_MSP,
+        # unicorn ignores MSP/PSP/CONTROL writes (and reads MSP/PSP as 0) while the core is
+        # unprivileged (thread mode with CONTROL.nPRIV = 1): on return, CONTROL (nPRIV clear) and
+        # the stack pointer are written while still in handler mode, the final CONTROL last
+        # (in thread mode, where a change of SPSEL switches the banked SP).
+        self._return_out = {psp: RegBlock(uc, (*_FRAME_REGS, A.UC_ARM_REG_CONTROL,
+                                               A.UC_ARM_REG_PSP if psp else A.UC_ARM_REG_MSP,
+                                               A.UC_ARM_REG_XPSR, A.UC_ARM_REG_APSR_NZCV, A.UC_ARM_REG_CONTROL,
                                                A.UC_ARM_REG_PC)) for psp in (False, True)}
+        # entry from unprivileged thread mode: borrow handler mode to clear nPRIV (restored at entry)
+        self._privileged = RegBlock(uc, (A.UC_ARM_REG_IPSR, A.UC_ARM_REG_CONTROL, A.UC_ARM_REG_IPSR))
+        self._faultmask = RegBlock(uc, (A.UC_ARM_REG_FAULTMASK,))
         self.vtor = 0
         self.prigroup = 0
         self.stkalign = True
         self.sleeponexit = False
         self.active: list[int] = []           # exception numbers, outermost first
+        self.event = False                    # the event register (WFE, SEV; B1.5.18)
+        self.aspen = True                     # FPCCR.ASPEN: with 0, no FP frame (see enter)
+        self._entering = None                 # (exception, tick of its first instruction) during entry
+        self.sleep_return = None              # EXC_RETURN of a return that went to sleep (SLEEPONEXIT)
 
     # --- reset ---------------------------------------------------------------------------------
     def reset(self, boot: int) -> None:
@@ -122,9 +139,36 @@ class ExceptionModel:
     def take_pending(self, t: int) -> bool:
         best = self._best()
         if best is None or best[0] >= self.execution_priority():
+            self._entering = None             # the handler's first instruction runs now
+            if self.sleep_return is not None:  # woken from SLEEPONEXIT by one that cannot preempt
+                ret, self.sleep_return = self.sleep_return, None
+                self._unstack(ret, t)
             return False
+        if self.sleep_return is not None:      # woken from SLEEPONEXIT: tail-chain onto the frame
+            ret, self.sleep_return = self.sleep_return, None
+            self.enter(best[1], t, tail_return=ret)
+            return True
+        entering = self._entering
+        if entering is not None and entering[1] == t and self.active and self.active[-1] == entering[0]:
+            self._late_arrival(best[1], t)
+            return True
         self.enter(best[1], t)
         return True
+
+    def _late_arrival(self, exc: int, t: int) -> None:
+        """A more urgent exception became pending while another was being entered (B1.5.6 note;
+        Cortex-M7 TRM "late-arriving"): it takes the frame already stacked and runs first; the
+        one it displaced stays pending and tail-chains after it."""
+        core, nvic = self.core, self.nvic
+        old = self.active.pop()
+        core.stack.pop()
+        nvic.active.discard(old - 16)
+        nvic.pending.add(old - 16)
+        core.isr_count[old - 16] -= 1
+        xpsr, control, _msp, _psp, _pc, *regs = self._entry_in.read()
+        self._entry_out.write((control, (xpsr & ~0x1FF) | exc, xpsr & 0xF8000000, regs[5]))
+        self._vector(exc, t)
+        core._schedule(t)
 
     def _fault(self, what, t):
         self.core._fault(self.uc.reg_read(A.UC_ARM_REG_PC), what, t)
@@ -132,10 +176,14 @@ class ExceptionModel:
     def enter(self, exc: int, t: int, tail_return: int | None = None) -> None:
         uc, core = self.uc, self.core
         xpsr, control, msp, psp, ret, *regs = self._entry_in.read()
+        if tail_return is None and control & 1 and not xpsr & 0x1FF:
+            self._privileged.write((SVCALL, control & ~1, 0))
+            xpsr, _, msp, psp, ret, *regs = self._entry_in.read()
+        self.event = True                     # exception entry is a WFE wake-up event
         if tail_return is None:
             thread = not self.active and (xpsr & 0x1FF) == 0
             use_psp = thread and bool(control & 2)
-            fp = bool(control & 4)
+            fp = bool(control & 4) and self.aspen   # (unicorn sets FPCA whatever ASPEN says)
             sp = psp if use_psp else msp
             size = 0x68 if fp else 0x20
             new = (sp - size) & 0xFFFFFFFF
@@ -146,7 +194,7 @@ class ExceptionModel:
             if fp:
                 frame += struct.pack("<16I", *(v & 0xFFFFFFFF for v in uc.reg_read_batch(_S)))
                 frame += struct.pack("<II", uc.reg_read(A.UC_ARM_REG_FPSCR) & 0xFFFFFFFF, 0)
-            if core._region(new, len(frame))[0] is None or core._region(new, len(frame))[0].kind != "ram":
+            if not core._covered(new, len(frame)):
                 self._fault(f"stacking for exception {exc} at SP {new:#010x} outside RAM (stack overflow?)", t)
             uc.mem_write(new, frame)
             exc_return = 0xFFFFFFE1 | (0 if fp else 0x10) | (8 if thread else 0) | (4 if use_psp else 0)
@@ -155,6 +203,15 @@ class ExceptionModel:
             exc_return = tail_return
         self._entry_out.write((control & ~6, (xpsr & 0xF8000000) | (1 << 24) | exc, xpsr & 0xF8000000,
                                exc_return))
+        self._vector(exc, t)
+        ticks = core.entry_latency * core.period
+        core.busy_ticks += ticks
+        self._entering = (exc, t + ticks)
+        core._schedule(t + ticks)
+
+    def _vector(self, exc: int, t: int) -> None:
+        """PC = the handler of ``exc``; ``exc`` becomes active."""
+        uc, core = self.uc, self.core
         m, off = core._region(self.vtor + 4 * exc, 4)
         vector = struct.unpack_from("<I", m.view, off)[0] if m is not None else 0
         if not vector & 1 or core._region(vector & ~1, 2)[0] is None:
@@ -166,9 +223,6 @@ class ExceptionModel:
         self.nvic.acknowledge(irqn)
         core.isr_count[irqn] = core.isr_count.get(irqn, 0) + 1
         core.stack.append(exc)
-        ticks = core.entry_latency * core.period
-        core.busy_ticks += ticks
-        core._schedule(t + ticks)
 
     def svc(self, t: int) -> None:
         if self.priority(SVCALL) >= self.execution_priority():
@@ -177,9 +231,12 @@ class ExceptionModel:
 
     # --- return --------------------------------------------------------------------------------
     def exception_return(self, exc_return: int, t: int) -> None:
-        uc, core = self.uc, self.core
-        exc, control, msp, psp = self._return_in.read()
+        core = self.core
+        exc, _control, _msp, _psp, faultmask = self._return_in.read()
         exc &= 0x1FF
+        self.event = True
+        if faultmask & 1 and exc != 2:         # DeActivate(): FAULTMASK clears on return, except from NMI
+            self._faultmask.write((0,))
         if exc_return not in _VALID_RETURNS:
             self._fault(f"exception return with invalid EXC_RETURN {exc_return:#010x}", t)
         if not self.active or self.active[-1] != exc:
@@ -196,12 +253,23 @@ class ExceptionModel:
         if best is not None and best[0] < self.execution_priority():
             self.enter(best[1], t, tail_return=exc_return)          # tail-chaining
             return
+        if thread and self.sleeponexit and not self.wakes():
+            # SLEEPONEXIT: sleep with the frame still stacked; the interrupt that wakes the core
+            # tail-chains onto it (take_pending), else the frame is popped then
+            self.sleep_return = exc_return
+            core.state = "sleep"
+            return
+        self._unstack(exc_return, t)
+
+    def _unstack(self, exc_return: int, t: int) -> None:
+        uc, core = self.uc, self.core
+        _exc, control, msp, psp, _fm = self._return_in.read()
+        thread = bool(exc_return & 8)
         use_psp = bool(exc_return & 4)
         fp = not exc_return & 0x10
         sp = psp if use_psp else msp
         size = 0x68 if fp else 0x20
-        m, _ = core._region(sp, size)
-        if m is None:
+        if not core._covered(sp, size, ("ram", "flash")):
             self._fault(f"unstacking from SP {sp:#010x} outside memory", t)
         raw = core.read(sp, size)
         words = struct.unpack_from("<8I", raw)
@@ -214,7 +282,5 @@ class ExceptionModel:
                                 (A.UC_ARM_REG_FPSCR, struct.unpack_from("<I", raw, 0x60)[0])])
         new_sp = (sp + size + (4 if xpsr & (1 << 9) else 0)) & 0xFFFFFFFF
         control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
-        self._return_out[use_psp].write((*words[:6], xpsr & ~(1 << 9), xpsr & 0xF8000000, control, new_sp,
-                                         words[6] & ~1))
-        if thread and self.sleeponexit and not self.wakes():
-            core.state = "sleep"
+        self._return_out[use_psp].write((*words[:6], control & ~3, new_sp, xpsr & ~(1 << 9), xpsr & 0xF8000000,
+                                         control, words[6] & ~1))

@@ -28,6 +28,21 @@ TYPES = {"bool": "<?", "u8": "<B", "i8": "<b", "u16": "<H", "i16": "<h", "u32": 
          "f32": "<f", "f64": "<d"}
 
 
+def _shortest_f32(value: float, raw: bytes) -> float:
+    """The shortest decimal that is this float32 (as C's printf("%g") round trip would give):
+    1.57f reads back as 1.57, not 1.5700000524520874, so it equals what the host published."""
+    if not math.isfinite(value):
+        return value
+    for digits in range(1, 10):
+        d = float(f"{value:.{digits}g}")
+        try:
+            if struct.pack("<f", d) == raw:
+                return d
+        except OverflowError:               # rounded past the largest float32
+            continue
+    return value
+
+
 class ElfTopic:
     def __init__(self, name, address, type_, direction, count_addr):
         self.name, self.address, self.type, self.direction, self.count_addr = name, address, type_, direction, count_addr
@@ -57,6 +72,9 @@ def read_topic_map(elf_path: str, image) -> dict:
         for key in ("symbol", "type", "direction"):
             if key not in spec:
                 raise ConfigError(f"{where}: topic {name}: missing {key} = ...")
+        for key, value in spec.items():
+            if not isinstance(value, str):
+                raise ConfigError(f"{where}: topic {name}: {key} = {value!r}: expected a string")
         if spec["type"] not in TYPES:
             raise ConfigError(f"{where}: topic {name}: type {spec['type']!r} is not one of {', '.join(TYPES)}")
         if spec["direction"] not in ("sub", "pub"):
@@ -83,6 +101,11 @@ class ElfFirmware:
         self.core, self.image, self.path = core, core.image, str(path)
         self.symbols = self.image.symbols
         self.topics = read_topic_map(path, self.image)
+        for t in self.topics.values():        # the host stores into them: they must be RAM
+            for what, address, size in ((t.name, t.address, t.size), (f"{t.name} (count)", t.count_addr, 4)):
+                if address is not None and not core._covered(address, size):
+                    raise ConfigError(f"{Path(path).with_suffix('.topics.toml')}: topic {what}: its symbol at "
+                                      f"{address:#010x} ({size} bytes) is not in the board's RAM")
         self._held = []
         if "/motor1/set_pos" in self.topics:      # the summary's set point per motor, as the ports give it
             self.set_point = lambda n: self.topic(f"/motor{n}/set_pos")
@@ -140,7 +163,9 @@ class ElfFirmware:
         t = self.topics.get(name)
         if t is None:
             raise ConfigError(f"no topic {name!r}; topics: {', '.join(self.topics) or 'none'}")
-        return struct.unpack(t.fmt, self.core.read(t.address, t.size))[0]
+        raw = self.core.read(t.address, t.size)
+        value = struct.unpack(t.fmt, raw)[0]
+        return _shortest_f32(value, raw) if t.type == "f32" else value
 
     def summary(self) -> dict:
         core = self.core

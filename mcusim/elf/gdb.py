@@ -6,8 +6,9 @@ served from inside the core's kernel event, so simulated time advances only whil
 runs. What it offers:
 
 * registers ``r0``-``r12``, ``sp``, ``lr``, ``pc``, ``xpsr`` (an ``org.gnu.gdb.arm.m-profile``
-  target description) and ``msp``, ``psp``, ``primask``, ``basepri``, ``faultmask``, ``control``,
-  read and written;
+  target description), ``msp``, ``psp``, ``primask``, ``basepri``, ``faultmask``, ``control``
+  and the FPU's ``d0``-``d15`` and ``fpscr`` (``org.gnu.gdb.arm.vfp``: gdb shows ``s0``-``s31``
+  and float arguments and locals), read and written;
 * memory: flash and RAM directly; a peripheral address goes through the register models, with
   their side effects, as on a real probe (reading a clear-on-read flag clears it);
 * breakpoints (``Z0``/``Z1``) and watchpoints on RAM and peripherals (``Z2`` write, ``Z3`` read,
@@ -31,12 +32,18 @@ from ..kernel import PRIO_OBSERVE
 SIGINT, SIGTRAP = 2, 5
 CORE_REGS = tuple(f"r{i}" for i in range(13)) + ("sp", "lr", "pc", "xpsr")
 SYSTEM_REGS = ("msp", "psp", "primask", "basepri", "faultmask", "control")
-REGS = CORE_REGS + SYSTEM_REGS
+FP_REGS = tuple(f"d{i}" for i in range(16)) + ("fpscr",)     # gdb shows s0-s31 as halves of d0-d15
+REGS = CORE_REGS + SYSTEM_REGS + FP_REGS
+
+
+def _size(name):
+    return 8 if name[0] == "d" else 4
 
 
 def _reg_xml(names, first):
-    return "".join(f'<reg name="{r}" bitsize="32" regnum="{first + i}"'
-                   + (' type="data_ptr"' if r in ("sp", "msp", "psp") else ' type="code_ptr"' if r == "pc" else "")
+    return "".join(f'<reg name="{r}" bitsize="{8 * _size(r)}" regnum="{first + i}"'
+                   + (' type="data_ptr"' if r in ("sp", "msp", "psp") else ' type="code_ptr"' if r == "pc"
+                      else ' type="ieee_double"' if r[0] == "d" else "")
                    + "/>" for i, r in enumerate(names))
 
 
@@ -44,6 +51,8 @@ TARGET_XML = ('<?xml version="1.0"?><!DOCTYPE target SYSTEM "gdb-target.dtd"><ta
               "<architecture>arm</architecture>"
               '<feature name="org.gnu.gdb.arm.m-profile">' + _reg_xml(CORE_REGS, 0) + "</feature>"
               '<feature name="org.mcusim.cortex-m.system">' + _reg_xml(SYSTEM_REGS, len(CORE_REGS))
+              + "</feature>"
+              '<feature name="org.gnu.gdb.arm.vfp">' + _reg_xml(FP_REGS, len(CORE_REGS) + len(SYSTEM_REGS))
               + "</feature></target>")
 
 
@@ -246,7 +255,6 @@ class GdbServer:
     _skip_bp = None
 
     def _handle(self, p: str):
-        core = self.core
         if p == "?":
             return self.reason or f"S{SIGTRAP:02x}"
         if p.startswith("qSupported"):
@@ -266,16 +274,17 @@ class GdbServer:
         if p.startswith(("Hg", "Hc", "!", "QStart")) or p == "qSymbol::":
             return "OK" if not p.startswith("QStart") else ""
         if p == "g":
-            return "".join(core.reg(r).to_bytes(4, "little").hex() for r in REGS)
+            return "".join(self._reg_hex(r) for r in REGS)
         if p.startswith("G"):
-            data = bytes.fromhex(p[1:])
-            for i, r in enumerate(REGS):
-                if 4 * i + 4 <= len(data):
-                    self._set_reg(r, int.from_bytes(data[4 * i:4 * i + 4], "little"))
+            data, pos = bytes.fromhex(p[1:]), 0
+            for r in REGS:
+                if pos + _size(r) <= len(data):
+                    self._set_reg(r, int.from_bytes(data[pos:pos + _size(r)], "little"))
+                pos += _size(r)
             return "OK"
         if p.startswith("p"):
             n = int(p[1:], 16)
-            return core.reg(REGS[n]).to_bytes(4, "little").hex() if n < len(REGS) else "E00"
+            return self._reg_hex(REGS[n]) if n < len(REGS) else "E00"
         if p.startswith("P"):
             n, v = p[1:].split("=")
             if int(n, 16) >= len(REGS):
@@ -325,6 +334,9 @@ class GdbServer:
             self.close()
             raise DebuggerKill("the debugger killed the target (gdb kill): the run ends")
         return ""                 # not supported: gdb falls back or does without
+
+    def _reg_hex(self, name):
+        return (self.core.reg(name) & ((1 << (8 * _size(name))) - 1)).to_bytes(_size(name), "little").hex()
 
     def _set_reg(self, name, value):
         if name == "pc":

@@ -18,6 +18,8 @@ from ..irq import PENDSV, SYSTICK
 from ..registers import Field, Peripheral, Register
 
 CPUID = {"cortex-m7": 0x411FC270, "cortex-m4": 0x410FC241}
+_SHCSR_ACT = {4: 0, 5: 1, 6: 3, 11: 7, 12: 8, 14: 10, 15: 11}        # exception number: xxxACT bit
+_SHCSR_PENDED = {6: 12, 4: 13, 5: 14, 11: 15}
 
 
 class CoreScb(Peripheral):
@@ -45,8 +47,12 @@ class CoreScb(Peripheral):
         Register("SHPR1", 0x18, on_write="_write_shpr"),
         Register("SHPR2", 0x1C, on_write="_write_shpr"),
         Register("SHPR3", 0x20, on_write="_write_shpr"),
-        Register("SHCSR", 0x24, fields=(Field("MEMFAULTENA", 16), Field("BUSFAULTENA", 17),
-                                          Field("USGFAULTENA", 18))),
+        Register("SHCSR", 0x24, on_read="_read_shcsr", on_write="_write_shcsr", fields=(
+            Field("MEMFAULTACT", 0), Field("BUSFAULTACT", 1), Field("USGFAULTACT", 3), Field("SVCALLACT", 7),
+            Field("MONITORACT", 8), Field("PENDSVACT", 10), Field("SYSTICKACT", 11),
+            Field("USGFAULTPENDED", 12), Field("MEMFAULTPENDED", 13), Field("BUSFAULTPENDED", 14),
+            Field("SVCALLPENDED", 15), Field("MEMFAULTENA", 16), Field("BUSFAULTENA", 17),
+            Field("USGFAULTENA", 18))),
         Register("CFSR", 0x28, access="rc_w1"),
         Register("HFSR", 0x2C, access="rc_w1"),
         Register("MMFAR", 0x34),
@@ -75,6 +81,26 @@ class CoreScb(Peripheral):
             v |= 1 << 26
         return v
 
+    def _status(self):
+        """SHCSR's active and pending bits as the exception model has them (B3.2.13)."""
+        v = 0
+        for exc in self.exc.active:
+            v |= 1 << _SHCSR_ACT.get(exc, 32)
+        for exc, bit in _SHCSR_PENDED.items():
+            if exc - 16 in self.nvic.pending:
+                v |= 1 << bit
+        return v & 0xFFFF
+
+    def _read_shcsr(self, stored):
+        return (stored & 0x70000) | self._status()
+
+    def _write_shcsr(self, old, new):
+        from ..errors import UnsupportedConfiguration
+        if (new ^ self._status()) & 0xFFFF:     # (a read-modify-write leaves them as they are)
+            raise UnsupportedConfiguration(self.name, "SHCSR", "active/pending bits", new & 0xFFFF,
+                                           "(changing an exception's state through SHCSR) is not modelled")
+        self.value["SHCSR"] = new & 0x70000
+
     def _write_icsr(self, old, new):
         for bit, irqn, setting in ((28, PENDSV, True), (27, PENDSV, False), (26, SYSTICK, True),
                                    (25, SYSTICK, False)):
@@ -98,6 +124,7 @@ class CoreScb(Peripheral):
         if new & 0x7:
             raise UnsupportedConfiguration(self.name, "AIRCR", "SYSRESETREQ", new & 7, "(a reset request) is not modelled")
         self.exc.prigroup = (new >> 8) & 7
+        self.nvic._changed()                  # a new group split may let a pending one preempt now
 
     def _write_scr(self, old, new):
         self.exc.sleeponexit = bool(new & 2)
@@ -121,9 +148,16 @@ class CoreScb(Peripheral):
 
 
 class Fpu(Peripheral):
-    """FPCCR, FPCAR, FPDSCR at 0xE000EF34 (base 0xE000EF30): stored; stacking is eager."""
+    """FPCCR, FPCAR, FPDSCR at 0xE000EF34 (base 0xE000EF30). FPCCR.ASPEN = 0: exceptions stack no
+    FP state (the frame follows ASPEN and CONTROL.FPCA); LSPEN is stored: stacking is eager."""
     SIZE = 0x10
-    REGISTERS = (Register("FPCCR", 0x4, reset=0xC0000000), Register("FPCAR", 0x8), Register("FPDSCR", 0xC))
+    REGISTERS = (Register("FPCCR", 0x4, reset=0xC0000000, on_write="_write_fpccr"), Register("FPCAR", 0x8),
+                 Register("FPDSCR", 0xC))
+    exc = None                                # the exception model, once the core exists
+
+    def _write_fpccr(self, old, new):
+        if self.exc is not None:
+            self.exc.aspen = bool(new >> 31)
 
 
 class Stir(Peripheral):
@@ -141,14 +175,23 @@ class Stir(Peripheral):
 
 
 class CoreDebug(Peripheral):
-    """DHCSR, DCRSR, DCRDR, DEMCR at 0xE000EDF0: DEMCR.TRCENA gates the DWT (stored)."""
+    """DHCSR, DCRSR, DCRDR, DEMCR at 0xE000EDF0: DEMCR.TRCENA (bit 24) powers the DWT: its cycle
+    counter stands still while TRCENA = 0 (Armv7-M ARM C1.6.5, C1.8.8)."""
     SIZE = 0x10
     REGISTERS = (Register("DHCSR", 0x0, access="r"), Register("DCRSR", 0x4, access="w"), Register("DCRDR", 0x8),
-                 Register("DEMCR", 0xC))
+                 Register("DEMCR", 0xC, on_write="_write_demcr"))
+
+    def __init__(self, dwt, name="CoreDebug"):
+        super().__init__(name)
+        self.dwt = dwt
+
+    def _write_demcr(self, old, new):
+        self.dwt.set_gates(trcena=bool(new >> 24 & 1))
 
 
 class Dwt(Peripheral):
-    """DWT_CTRL and DWT_CYCCNT (0xE0001000): CYCCNT counts core cycles while CYCCNTENA = 1."""
+    """DWT_CTRL and DWT_CYCCNT (0xE0001000): CYCCNT counts core cycles while CYCCNTENA = 1 and
+    DEMCR.TRCENA = 1."""
     SIZE = 0x1000
     REGISTERS = (
         Register("CTRL", 0x0, reset=0x40000000, on_write="_write_ctrl", fields=(
@@ -162,6 +205,7 @@ class Dwt(Peripheral):
         self.kernel, self.period = mcu.kernel, mcu.core_clock.period
         self._base = None          # (cycle at which CYCCNT held _val)
         self._val = 0
+        self._ena = self._trc = False
 
     def _cycles(self):
         return self.kernel.now // self.period
@@ -176,7 +220,12 @@ class Dwt(Peripheral):
         self._base = self._cycles() if self._base is not None else None
 
     def _write_ctrl(self, old, new):
-        on = bool(new & 1)
+        self.set_gates(ena=bool(new & 1))
+
+    def set_gates(self, ena=None, trcena=None):
+        self._ena = self._ena if ena is None else ena
+        self._trc = self._trc if trcena is None else trcena
+        on = self._ena and self._trc
         if on and self._base is None:
             self._base = self._cycles()
         elif not on and self._base is not None:

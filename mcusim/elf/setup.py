@@ -32,13 +32,15 @@ def build_core(profile: dict, mcu, image, memories):
     core_spec = profile["core"]
     kind = core_spec.get("kind", "cortex-m4")
     bus = mcu.bus
-    bus.attach(0xE000EDF0, CoreDebug("CoreDebug"))
+    dwt, fpu = Dwt(mcu), Fpu("FPU")
+    bus.attach(0xE000EDF0, CoreDebug(dwt))
     bus.attach(0xE000EF00, Stir(mcu.nvic))
-    bus.attach(0xE000EF30, Fpu("FPU"))
-    bus.attach(0xE0001000, Dwt(mcu))
+    bus.attach(0xE000EF30, fpu)
+    bus.attach(0xE0001000, dwt)
     core = CortexMCore(mcu, image, memories, kind=kind, cpi=core_spec.get("cycles_per_instruction", 1),
                        entry_latency=core_spec.get("entry_latency", 12),
                        boot_address=core_spec.get("boot_address", 0))
+    fpu.exc = core.exc
     scb = CoreScb(mcu.nvic, core.exc, kind)
     bus.attach(0xE000ED00, scb)           # on the NVIC's page, already mapped into the core
     mcu.periph["SCB"] = scb
