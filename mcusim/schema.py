@@ -236,24 +236,30 @@ def _check_memory(prof: Profile) -> None:
             spans.append((name, b, b + size))
 
 
-def _check_peripherals(prof: Profile) -> None:
+def _named_kinds(prof: Profile, table: str):
+    """(index, spec, where, kind) of each entry of ``[[table]]``: a unique name and a known kind."""
     names = set()
-    for i, spec in enumerate(_array(prof, "peripheral")):
-        where = f"[[peripheral]] #{i + 1}"
-        _class_key(prof, spec, where, "peripheral", i)
+    for i, spec in enumerate(_array(prof, table)):
+        where = f"[[{table}]] #{i + 1}"
+        _class_key(prof, spec, where, table, i)
         if "name" not in spec:
-            raise prof.err(f"{where}: missing name = \"...\"", "peripheral", i)
-        name = _name(prof, spec["name"], f"{where} name", "peripheral", i, "name")
-        where = f"[[peripheral]] {name}"
+            raise prof.err(f"{where}: missing name = \"...\"", table, i)
+        name = _name(prof, spec["name"], f"{where} name", table, i, "name")
+        where = f"[[{table}]] {name}"
         if name in names:
-            raise prof.err(f"{where}: a second peripheral of that name", "peripheral", i, "name")
+            raise prof.err(f"{where}: a second {table} of that name", table, i, "name")
         names.add(name)
         if "kind" not in spec:
-            raise prof.err(f"{where}: missing kind = \"...\"", "peripheral", i)
+            raise prof.err(f"{where}: missing kind = \"...\"", table, i)
         try:
-            kind = lookup("peripheral", spec["kind"], where)
+            kind = lookup(table, spec["kind"], where)
         except ConfigError as exc:
-            raise prof.err(str(exc), "peripheral", i, "kind") from None
+            raise prof.err(str(exc), table, i, "kind") from None
+        yield i, spec, where, kind
+
+
+def _check_peripherals(prof: Profile) -> None:
+    for i, spec, where, kind in _named_kinds(prof, "peripheral"):
         for need in kind.needs:
             if need not in spec:
                 raise prof.err(f"{where}: kind {kind.name} needs {need} = ...", "peripheral", i)
@@ -304,23 +310,7 @@ def _check_wiring(prof: Profile, system: bool) -> None:
 
 
 def _check_parts(prof: Profile) -> None:
-    names = set()
-    for i, spec in enumerate(_array(prof, "part")):
-        where = f"[[part]] #{i + 1}"
-        _class_key(prof, spec, where, "part", i)
-        if "name" not in spec:
-            raise prof.err(f"{where}: missing name = \"...\"", "part", i)
-        name = _name(prof, spec["name"], f"{where} name", "part", i, "name")
-        where = f"[[part]] {name}"
-        if name in names:
-            raise prof.err(f"{where}: a second part of that name", "part", i, "name")
-        names.add(name)
-        if "kind" not in spec:
-            raise prof.err(f"{where}: missing kind = \"...\"", "part", i)
-        try:
-            kind = lookup("part", spec["kind"], where)
-        except ConfigError as exc:
-            raise prof.err(str(exc), "part", i, "kind") from None
+    for i, spec, where, kind in _named_kinds(prof, "part"):
         for ref in kind.refs:
             if ref in spec:
                 v = spec[ref]
