@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import math
 
+from mcusim.fw.openrover_rcm.mavlink_params import ParamProtocol
+
 MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_GENERIC = 10, 0
 MAV_TYPE_GCS, MAV_TYPE_ONBOARD_CONTROLLER = 6, 18
 MODE_CUSTOM, MODE_GUIDED, MODE_MANUAL_INPUT, MODE_ARMED = 1, 8, 64, 128
@@ -44,7 +46,6 @@ RESULT_ACCEPTED, RESULT_TEMP_REJECTED, RESULT_DENIED, RESULT_UNSUPPORTED, RESULT
 RESULT_COMMAND_LONG_ONLY = 7
 CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPS = 400, 511, 512, 520
 COMMAND_LONG_ONLY = (CMD_ARM_DISARM, CMD_SET_INTERVAL, CMD_REQUEST_MESSAGE, CMD_REQUEST_CAPS)
-PARAM_REAL32 = 9
 SENSOR_MOTORS, SENSOR_BATTERY = 0x8000, 0x02000000
 CAPS = 2 | 128 | 8192     # PARAM_FLOAT | SET_POSITION_TARGET_LOCAL_NED | MAVLINK2
 FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED, FRAME_BODY_FRD = 1, 7, 8, 9, 12
@@ -56,14 +57,9 @@ START_BYTES = (0xFD, 0xFE)                 # MAVLink 2, MAVLink 1
 STREAMS = {0: 1000, 1: 1000, 147: 1000, 32: 100, 30: 100, 251: 200, 148: 0}
 STREAM_NAMES = {0: "HEARTBEAT", 1: "SYS_STATUS", 147: "BATTERY_STATUS", 32: "LOCAL_POSITION_NED",
                 30: "ATTITUDE", 251: "NAMED_VALUE_FLOAT", 148: "AUTOPILOT_VERSION"}
-GAIN_PARAMS = {"WHL_KP": "KP", "WHL_KI": "KI", "WHL_KD": "KD"}
-GAIN_MAX = 1e4                             # the modules' own range for kp, ki, kd
-BATTERY_PARAMS = {"BATT_LOW_V": "low_v", "BATT_CRIT_V": "critical_v", "BATT_HYST_V": "hysteresis_v"}
-PARAM_IDS = tuple(GAIN_PARAMS) + tuple(BATTERY_PARAMS)
 # never skipped for the streams' sake: the TX buffer keeps TX_RESERVE bytes free for them
 PRIORITY = {0: "HEARTBEAT", 77: "COMMAND_ACK", 22: "PARAM_VALUE", 253: "STATUSTEXT"}
 TX_RESERVE = 128
-PARAM_VALUE_LEN, PARAM_RESERVE, PARAM_QUEUE = 37, 48, 64     # framed bytes; bytes kept free; entries
 STREAM_SHARE = 0.75          # of the line's bytes per second, at most, for the streams
 FRAME_OVERHEAD = 12          # MAVLink 2: 10-byte header, 2-byte CRC
 
@@ -75,7 +71,7 @@ def message_id(param: float) -> int | None:
     return int(param)
 
 
-class MavlinkLink:
+class MavlinkLink(ParamProtocol):
     """The task's state and its handlers; ``rc`` is the RoverControl it serves."""
 
     def __init__(self, rc, serial):
@@ -432,90 +428,6 @@ class MavlinkLink:
                                                         m.mission_type))
 
     # --- parameters ------------------------------------------------------------------------------------
-    async def on_param_request_list(self, m) -> None:
-        if not self._for_me(m.target_system, m.target_component):
-            self.ignored += 1
-            return
-        self.queue_param(*range(len(PARAM_IDS)))
-
-    async def on_param_request_read(self, m) -> None:
-        if not self._for_me(m.target_system, m.target_component):
-            self.ignored += 1
-            return
-        idx = m.param_index if m.param_index >= 0 else self._index(m.param_id)
-        if idx is None or not 0 <= idx < len(PARAM_IDS):
-            self.ignored += 1
-            return
-        self.queue_param(idx)
-
-    async def on_param_set(self, m) -> None:
-        if not self._for_me(m.target_system, m.target_component):
-            self.ignored += 1
-            return
-        idx = self._index(m.param_id)
-        if idx is None:
-            self.ignored += 1
-            return
-        name, v = PARAM_IDS[idx], float(m.param_value)
-        if name in GAIN_PARAMS:
-            if self.rc.motors_enabled and 0 <= v <= GAIN_MAX:      # refused values are echoed unchanged
-                failed = []
-                for addr in self.rc.modules:
-                    if await self.rc._write_reg(addr, GAIN_PARAMS[name], v) != 0:
-                        failed.append(addr)
-                self.gains = None            # read back what the modules took
-                if failed:
-                    self.event(SEV_WARNING, f"{name} not written to " + " ".join(f"{a:#04x}" for a in failed))
-                elif math.isnan(await self.param_value(idx)):
-                    self.event(SEV_WARNING, f"{name}: the modules do not all hold the same value")
-        elif math.isfinite(v) and 0 <= v <= 100:
-            key = BATTERY_PARAMS[name]
-            trial = {**self.p, key: v}
-            if trial["critical_v"] < trial["low_v"] and trial["hysteresis_v"] <= 10:
-                self.p[key] = v            # refused values are echoed unchanged
-        self.queue_param(idx)
-
-    def _index(self, param_id) -> int | None:
-        pid = param_id if isinstance(param_id, str) else bytes(param_id).decode("ascii", "replace")
-        pid = pid.split("\x00")[0]
-        return PARAM_IDS.index(pid) if pid in PARAM_IDS else None
-
-    async def read_gains(self) -> tuple:
-        """(KP, KI, KD) as every module holds them, NaN where a module does not answer or they
-        differ; cached once they agree, until the next PARAM_SET of a gain."""
-        if self.gains is not None:
-            return self.gains
-        if not self.rc.motors_enabled:
-            return (math.nan,) * 3
-        gains = []
-        for reg in ("KP", "KI", "KD"):
-            got = [await self.rc._read_reg(addr, reg) for addr in self.rc.modules]
-            gains.append(got[0] if None not in got and len(set(got)) == 1 else math.nan)
-        if not any(math.isnan(g) for g in gains):
-            self.gains = tuple(gains)
-        return tuple(gains)
-
-    async def param_value(self, idx: int) -> float:
-        name = PARAM_IDS[idx]
-        if name in GAIN_PARAMS:
-            return (await self.read_gains())[list(GAIN_PARAMS).index(name)]
-        return float(self.p[BATTERY_PARAMS[name]])
-
-    def queue_param(self, *idx: int) -> None:
-        """PARAM_VALUEs to send, never dropped while the queue (PARAM_QUEUE entries) has room."""
-        room = PARAM_QUEUE - len(self.param_queue)
-        self.param_queue.extend(idx[:room])
-        self.ignored += max(0, len(idx) - room)
-
-    async def param_step(self) -> None:
-        """Send queued PARAM_VALUEs while the transmit buffer has room for them beside PARAM_RESERVE
-        bytes (a HEARTBEAT and a COMMAND_ACK); the streams keep the larger TX_RESERVE free."""
-        while self.param_queue and self.serial.txroom >= PARAM_VALUE_LEN + PARAM_RESERVE:
-            idx = self.param_queue.pop(0)
-            value = await self.param_value(idx)
-            self.send(self.ml.MAVLink_param_value_message(PARAM_IDS[idx].encode(), value, PARAM_REAL32,
-                                                          len(PARAM_IDS), idx))
-
     def summary(self) -> dict:
         return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
                 "tx_frames": self.tx_frames, "tx_skipped": self.tx_skipped, "ignored": self.ignored,
