@@ -19,7 +19,8 @@ from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
 
 # whole-period chunks are screened CHUNK_MIN periods ahead at first, doubling up to CHUNK_MAX while
-# nothing fires
+# nothing fires; chunks that input changes keep cutting short bring it down, not below CHUNK_LO
+# (_chunk_lived)
 CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
 
 
