@@ -61,15 +61,14 @@ class PeriodPlan:
         self.bounds = []
         for ticks, _, absA, absu, *_ in pieces:
             tau = ticks * inv_hz
-            m = np.eye(2) - tau * absA
-            det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
-            if det <= 0 or tau * (absA[0, 0] + absA[1, 1]) >= 1.0:
+            (a00, a01), (a10, a11) = absA.tolist()
+            m00, m01, m10, m11 = 1.0 - tau * a00, -tau * a01, -tau * a10, 1.0 - tau * a11
+            det = m00 * m11 - m01 * m10
+            if det <= 0 or tau * (a00 + a11) >= 1.0:
                 self.bounds.append(None)
                 continue
-            W = np.linalg.inv(m)
-            if (W < 0).any():
-                self.bounds.append(None)
-                continue
+            # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
+            W = np.array(((m11 / det, -m01 / det), (-m10 / det, m00 / det)))
             self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
 
     def first_flag(self, x0, n: int, extra_guards):
