@@ -8,7 +8,7 @@ noise (other jobs on the 2 cores) moves single runs by 10-20 %.
 
 import argparse
 
-from mcusim.cli import bench
+from mcusim.bench import bench
 from mcusim.time import parse_duration
 
 if __name__ == "__main__":

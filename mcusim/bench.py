@@ -1,0 +1,70 @@
+"""``bench``: how fast a board simulates, as the ``mcusim bench`` command and ``benchmarks/`` measure it.
+
+The board runs the fixed command of its profile's ``[bench.set]`` table (else ``[run.set]``) for a
+simulated duration, ``repeat`` times; the figures are those of the median run (wall time of
+``run()`` only: loading and building the board are not counted).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+from .engine import DEFAULT_ENGINE, ENGINES
+from .errors import ConfigError
+
+
+def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True) -> dict:
+    """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run.
+    ``engine="both"`` runs the fast and the reference engine alternately in this process and adds
+    ``reference_realtime_factor`` and ``speedup`` (fast over reference)."""
+    if engine == "both":
+        fast, ref = {}, {}
+        runs = [bench(board, duration, 1, e, firmware) for _ in range(repeat) for e in ENGINES]
+        fast = _median_of([r for r in runs if r["engine"] == "fast"])
+        ref = _median_of([r for r in runs if r["engine"] == "reference"])
+        fast["reference_realtime_factor"] = ref["realtime_factor"]
+        fast["reference_wall_s_median"] = ref["wall_s_median"]
+        fast["speedup"] = fast["realtime_factor"] / ref["realtime_factor"]
+        fast["engine"] = "both"
+        return fast
+    from .board import read_profile
+    from .sim import load
+    profile = read_profile(board)[0]
+    scenario = profile.get("bench", {}).get("set") or profile.get("run", {}).get("set", {})
+    runs = []
+    table = "[bench.set]" if profile.get("bench", {}).get("set") else "[run.set]"
+    for _ in range(repeat):
+        try:
+            sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
+        except ConfigError as exc:
+            if firmware is None or not scenario:
+                raise
+            raise ConfigError(f"the bench sends the board profile's {table} command "
+                              f"({', '.join(scenario)}) to the firmware: {exc}") from None
+        t0 = time.perf_counter()
+        try:
+            sim.run(seconds=duration)
+        finally:
+            sim.close()
+        wall = time.perf_counter() - t0
+        runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"],
+                     getattr(sim.mcu.cpu, "instructions", None)))
+    walls = [r[0] for r in runs]
+    wall = statistics.median(walls)
+    events, sim_s = runs[0][1], runs[0][2]
+    return {"board": board, "scenario": ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}"
+                                                  for k, v in scenario.items()),
+            "simulated_s": sim_s, "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
+            "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
+            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3],
+            **({"instructions": runs[0][4], "instructions_per_wall_s": runs[0][4] / wall}
+               if runs[0][4] is not None else {})}
+
+
+def _median_of(runs: list) -> dict:
+    walls = sorted(r["wall_s_median"] for r in runs)
+    out = dict(min(runs, key=lambda r: abs(r["wall_s_median"] - statistics.median(walls))))
+    out.update(wall_s_median=statistics.median(walls), wall_s_min=walls[0], wall_s_max=walls[-1],
+               repeat=len(runs), realtime_factor=out["simulated_s"] / statistics.median(walls))
+    return out
