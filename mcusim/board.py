@@ -286,7 +286,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     avr = core.get("kind", "").startswith("avr")
     elf = with_firmware if isinstance(with_firmware, (str, Path)) else None
     if elf is not None:
+        from .elf.image import resolve_firmware
         from .elf.setup import attach_memories, check_elf_board
+        elf = resolve_firmware(elf)
         image, memories = check_elf_board(profile, where, elf)
         attach_memories(bus, memories)
     if avr:

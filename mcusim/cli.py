@@ -31,13 +31,15 @@ EXAMPLES_RUN = """examples:
   mcusim run elementall --set mcm3.present=false --set battery.count=2
   mcusim run nucleo-f746 --scenario step_response --plot step.png --csv step.csv
   mcusim run nucleo-f746 --duration 5ms --register-log regs.jsonl --register-log-filter TIM1,TIM2
-  mcusim run nucleo-f746 --firmware firmware/controlmotor_c/controlmotor.elf --set /motor1/set_pos=1.57
+  mcusim run nucleo-f746 --firmware controlmotor --set /motor1/set_pos=1.57
   mcusim run elementall --mavlink udpout:127.0.0.1:14550 --realtime --duration 60s
-  mcusim run elementall --mavlink pty --duration 2s
+  mcusim run ciaa-edu --mavlink pty --realtime --duration 60s
 
 durations take a unit (2s, 500ms, 20us); a run may last at most 600s of simulated time unless
 --max-duration raises the limit. --set topics and inputs (/motor1/set_pos=1.57, velocity=10)
 replace the profile's demo command; parameters (motor1.R=2.5, firmware.kp=300) do not.
+--mavlink pty prints the pty's path: connect the ground station (mavproxy, pymavlink) to it while
+the run goes on, with --realtime so that it keeps pace with the wall clock.
 
 exit status: 0 the run completed; 1 the firmware reported a fault, a scenario expectation
 failed, or the simulation hit an error; 2 a usage error (bad board, key, value, unit, scenario
@@ -219,8 +221,6 @@ def _print_summary(s: dict) -> None:
     if "battery_v" in s:
         print(f"{'battery':<10} {s['battery_v']:.3f} V (lowest {s.get('battery_min_v', s['battery_v']):.3f} V, "
               f"state of charge {100 * s.get('battery_soc', 1):.2f} %)")
-    for w in s.get("warnings", ()):
-        print(f"warning: {w}")
     fw = s.get("firmware")
     if fw:
         print("firmware: " + ", ".join(f"{k} = {(f'{v:.3f}' if isinstance(v, float) else v)}" for k, v in fw.items()))
@@ -492,7 +492,7 @@ def cmd_bench(args) -> int:
         raise
     print(f"{r['board']} bench ({r['scenario']}): {r['simulated_s']:.3f} s simulated, "
           f"median wall {r['wall_s_median']:.2f} s (min {r['wall_s_min']:.2f}, max {r['wall_s_max']:.2f}) "
-          f"over {r['repeat']} runs")
+          f"over {r['repeat']} run{'s' if r['repeat'] != 1 else ''}")
     name = "fast" if r["engine"] == "both" else r["engine"]
     print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s ({name} engine, "
           f"{100 * r['fast_fraction']:.0f} % of the motor time in whole-period chunks); "
@@ -500,8 +500,8 @@ def cmd_bench(args) -> int:
     if "instructions" in r:
         print(f"{r['instructions']:,} instructions ({r['instructions_per_wall_s']:,.0f} per wall s)")
     if r["engine"] == "both":
-        print(f"reference engine {r['reference_realtime_factor']:.3f}; speedup {r['speedup']:.1f}x "
-              f"(fast over reference, measured in this process)")
+        print(f"reference engine: real-time factor {r['reference_realtime_factor']:.3f}; speedup "
+              f"{r['speedup']:.1f}x (fast over reference, measured in this process)")
     return 0
 
 
@@ -524,11 +524,25 @@ def _os_error(exc: OSError, args) -> str:
     return f"cannot write {' or '.join(outs) or 'an output'}: {exc.strerror or exc}"
 
 
+def _negative_values(argv: list) -> list:
+    """``--duration -5ms`` as ``--duration=-5ms``: argparse takes a value that starts with ``-`` and
+    a digit for an option, so the user would hear "expected one argument" instead of what is wrong
+    with the value."""
+    out = []
+    for a in argv:
+        if (out and out[-1].startswith("--") and "=" not in out[-1] and len(a) > 1 and a[0] == "-"
+                and (a[1].isdigit() or a[1] == ".")):
+            out[-1] += "=" + a
+        else:
+            out.append(a)
+    return out
+
+
 def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status (also
     for --help, 0, and for a usage error found by the argument parser, 2)."""
     try:
-        args = _parser().parse_args(argv)
+        args = _parser().parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
     import warnings

@@ -122,3 +122,19 @@ def test_a_misspelt_part_in_pins_is_named(tmp_path, capsys):
 @pytest.mark.parametrize("opt", ["--sample", "--vcd-sample"])
 def test_a_sampling_grid_without_its_output_is_refused(capsys, opt):
     assert opt in _one_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", opt, "1ms"])
+
+
+def test_a_warning_during_the_run_is_printed_once(capsys):
+    """The ADC clock warning appears once on stderr when it happens, not again after the summary
+    (the JSON summary still lists it under "warnings")."""
+    assert main(["run", "ciaa-edu", "--set", "firmware.adc_clkdiv=10", "--duration", "20ms"]) in (0, 1)
+    out = capsys.readouterr()
+    assert (out.out + out.err).count("ADC clock") == 1
+
+
+def test_a_negative_duration_after_a_space_is_refused_for_what_it_is(capsys):
+    """argparse takes "-1s" for an option; the user must hear that a duration cannot be negative,
+    whether written --duration=-1s or --duration -1s."""
+    for argv in (["--duration", "-1s"], ["--duration=-1s"]):
+        assert main(["run", "nucleo-f746", *argv]) == 2
+        assert "must not be negative" in capsys.readouterr().err

@@ -333,3 +333,16 @@ def test_interrupts_pending_together_run_in_priority_order(prios, pend, prigroup
     trace = [word(sim, "trace", i) for i in range(word(sim, "n_trace"))]
     assert trace == sorted(pend, key=lambda n: (prios[n] << 4, n))
     sim.close()
+
+
+def test_a_shipped_image_runs_by_name_from_any_directory(tmp_path, monkeypatch, capsys):
+    """--firmware takes a shipped image's name (as --scenario takes a shipped scenario's), so the
+    README's command works in an installed mcusim, away from the repository; an unknown name lists
+    the shipped ones."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "nucleo-f746", "--firmware", "controlmotor", "--duration", "10ms"]) == 0
+    assert main(["run", "nucleo-f746", "--firmware", "controlmotor_thesis.elf", "--duration", "10ms"]) == 0
+    capsys.readouterr()
+    assert main(["run", "nucleo-f746", "--firmware", "controlmotr", "--duration", "10ms"]) == 2
+    err = capsys.readouterr().err
+    assert "no shipped image of that name" in err and "controlmotor, controlmotor_thesis" in err

@@ -59,6 +59,27 @@ class ElfImage:
             raise ConfigError(f"{self.path}: no symbol {name!r} in the ELF's symbol table") from None
 
 
+def shipped_images() -> dict:
+    """{name: path} of the compiled images shipped with mcusim (``controlmotor``, ...)."""
+    from importlib.resources import files
+    root = Path(str(files("mcusim.fw"))) / "controlmotor_c"
+    return {p.stem: p for p in sorted(root.glob("*.elf"))}
+
+
+def resolve_firmware(path):
+    """``path`` if it names a file; else a shipped image's name (``controlmotor`` or
+    ``controlmotor.elf``), as ``--scenario`` takes shipped scenario names; ConfigError if neither."""
+    p = Path(path)
+    if p.exists() or len(p.parts) > 1:
+        return path                      # a path: read_elf reports what is wrong with it
+    shipped = shipped_images()
+    name = p.stem if p.suffix == ".elf" else p.name
+    if name in shipped:
+        return shipped[name]
+    raise ConfigError(f"--firmware {str(path)!r}: no such file, and no shipped image of that name "
+                      f"(shipped: {', '.join(shipped) or 'none'})")
+
+
 def read_elf(path) -> ElfImage:
     """Parse ``path`` (an ARM ELF executable); ConfigError for anything that cannot run."""
     from elftools.common.exceptions import ELFError
