@@ -1,38 +1,19 @@
 """Cortex-M NVIC and the firmware runtime: entry latency, priorities, preemption, cycle costs."""
 
 import pytest
-from mcusim.periph.cortexm.systick import SysTick
+from cortexm_rig import NVIC, enable, rig
 
 from mcusim.errors import McusimError
 from mcusim.firmware import Cpu, Rtos
-from mcusim.irq import SYSTICK, Nvic, Scb
+from mcusim.irq import SYSTICK, Nvic
 from mcusim.kernel import Kernel
-from mcusim.mcu import Mcu
-from mcusim.registers import Bus
 from mcusim.time import TimeBase
-
-NVIC = 0xE000E100
 
 
 @pytest.fixture
 def m():
-    tb = TimeBase([216_000_000])
-    k = Kernel(tb)
-    bus = Bus()
-    core = tb.clock("core", 216_000_000)
-    mcu = Mcu("t", k, bus, core)
-    mcu.nvic = Nvic()
-    bus.attach(NVIC, mcu.nvic)
-    bus.attach(0xE000ED00, Scb(mcu.nvic))
-    bus.attach(0xE000E010, SysTick("SysTick", mcu, core, tb.clock("ref", 27_000_000)))
-    mcu.cpu = Cpu(k, core, mcu.nvic)
-    mcu.rtos = Rtos(mcu.cpu)
-    return mcu
+    return rig()
 
-
-def enable(m, n, prio):
-    m.write32(NVIC + 4 * (n >> 5), 1 << (n & 31))          # ISER
-    m.write8(NVIC + 0x300 + n, prio << 4)                   # IPR byte, 4 implemented bits
 
 
 def test_handler_runs_12_cycles_after_the_line_rises(m):
@@ -189,10 +170,7 @@ def test_clear_pending_has_no_effect_while_level_line_is_asserted(m):
 def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later_wait():
     """nxsem_tickwait semantics: the wait ends after ``timeout`` RTOS ticks with False; a signal
     firing later must not wake the task out of its next, unrelated wait."""
-    from mcusim.firmware import Cpu, Rtos, Signal
-    from mcusim.irq import Nvic
-    from mcusim.kernel import Kernel
-    from mcusim.time import TimeBase
+    from mcusim.firmware import Signal
     tb = TimeBase([1_000_000])
     k = Kernel(tb)
     nvic = Nvic(num_irqs=16)

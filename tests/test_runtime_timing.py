@@ -8,37 +8,15 @@ them (12-cycle entry, the handler's declared cost, tail-chaining with a full ent
 """
 
 import pytest
-from mcusim.periph.cortexm.systick import SysTick
+from cortexm_rig import NVIC, enable, rig
 
-from mcusim.firmware import Cpu, Rtos
-from mcusim.irq import SYSTICK, Nvic, Scb
+from mcusim.irq import SYSTICK
 from mcusim.kernel import PRIO_CPU, PRIO_HW, PRIO_OBSERVE, Kernel
-from mcusim.mcu import Mcu
 from mcusim.registers import Bus, Peripheral, Register
 from mcusim.time import TimeBase
 
-NVIC = 0xE000E100
 ENTRY = 12   # Cortex-M exception entry latency in cycles; one cycle is one base tick here
 
-
-def rig():
-    tb = TimeBase([216_000_000])
-    k = Kernel(tb)
-    bus = Bus()
-    core = tb.clock("core", 216_000_000)
-    mcu = Mcu("t", k, bus, core)
-    mcu.nvic = Nvic()
-    bus.attach(NVIC, mcu.nvic)
-    bus.attach(0xE000ED00, Scb(mcu.nvic))
-    bus.attach(0xE000E010, SysTick("SysTick", mcu, core, tb.clock("ref", 27_000_000)))
-    mcu.cpu = Cpu(k, core, mcu.nvic)
-    mcu.rtos = Rtos(mcu.cpu)
-    return mcu
-
-
-def enable(m, n, prio):
-    m.write32(NVIC + 4 * (n >> 5), 1 << (n & 31))
-    m.write8(NVIC + 0x300 + n, prio << 4)
 
 
 def noise(m, start, stop, step=1, prio=PRIO_OBSERVE):
