@@ -15,7 +15,6 @@ def m():
     return rig()
 
 
-
 def test_handler_runs_12_cycles_after_the_line_rises(m):
     seen = []
 
