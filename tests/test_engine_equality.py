@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from engine_compare import differences
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -150,6 +150,9 @@ FAULTS = {
 
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+# found on CI: an mcm2 encoder edge 1 tick late in the fast engine (period maps in plain matrix form
+# drifted ~1e-12 relative from the edge-by-edge steps; see test_period_map_precision)
+@example(lin=-0.28431521530798437, ang=0.05, fault="silent", t_fault=227, reverse=False)
 @given(lin=st.floats(-0.6, 0.6), ang=st.floats(-0.5, 0.5), fault=st.sampled_from(sorted(FAULTS)),
        t_fault=st.integers(150, 260), reverse=st.booleans())
 def test_engines_agree_on_generated_rover_runs(tmp_path_factory, lin, ang, fault, t_fault, reverse):

@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..plant import pwl
+from . import periodmap
 from .periodmap import PowerTable
 
 #: relative safety margin of a screened guard value (float rounding of the maps, ~1e-12, times 1000)
@@ -37,7 +38,7 @@ class PeriodPlan:
     """One period of pieces starting at a piece boundary, with its maps, guards and power table.
 
     ``pieces``: list of ``(ticks, flow, absA, absu, guards, drive, mode)`` in time order, where
-    ``flow`` is the augmented 4×4 map of the piece, ``absA``/``absu`` the absolute values of the
+    ``flow`` is the augmented 4×4 delta map of the piece (:mod:`.periodmap`: ``T − I``), ``absA``/``absu`` the absolute values of the
     piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
     """
 
@@ -45,10 +46,10 @@ class PeriodPlan:
         self.pieces = pieces
         self.P = period_ticks
         self.inv = inv_hz
-        # Q[p]: map from the period start to the start of piece p; Q[len] is the period map
-        Q = [np.eye(4)]
+        # Q[p]: delta map from the period start to the start of piece p; Q[len]: the period's
+        Q = [np.zeros((4, 4))]
         for pc in pieces:
-            Q.append(pc[1] @ Q[-1])
+            Q.append(periodmap.then(Q[-1], pc[1]))
         self.Q = Q
         self.T = Q[-1]
         self.table = PowerTable(self.T, n)
@@ -84,8 +85,8 @@ class PeriodPlan:
             if b is None:
                 return 0, X[:1], ib
             W, w, tau, absA, absu = b
-            S = X[:flag] @ self.Q[p].T if p else X[:flag]
-            E = X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
+            S = X[:flag] + X[:flag] @ self.Q[p].T if p else X[:flag]
+            E = X[:flag] + X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
             ab = np.abs(S[:, :2])
             xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
             ib = max(ib, float(xb[:, 0].max()))
@@ -110,7 +111,7 @@ class PeriodPlan:
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
         X = self.table.augmented_states(x0, k - 1)
-        return np.stack([X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
+        return np.stack([X + X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
 
 
 class ChunkTraj:
@@ -164,7 +165,7 @@ class ChunkTraj:
                 if te <= after:
                     continue
                 # θ at the piece end (monotone in the chunk): no crossing in this piece if not fired
-                the = float(plan.Q[p + 1][2] @ Xq) if p + 1 < npc else float(self.X[q + 1][2])
+                the = float(Xq[2] + plan.Q[p + 1][2] @ Xq) if p + 1 < npc else float(self.X[q + 1][2])
                 he = the * ct + c0
                 if not (he < 0.0 if strict else he <= 0.0):
                     continue
@@ -187,8 +188,7 @@ class ChunkTraj:
             return memo[1], memo[2]
         xk = self.x0 if q == 0 else plan.table.state(self.x0, q)
         if p:
-            v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
-            xk = (float(v[0]), float(v[1]), float(v[2]))
+            xk = periodmap.apply(plan.Q[p], xk)
         tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
         self._piece_memo = (ts, xk, tr)
         return xk, tr
@@ -210,8 +210,7 @@ class ChunkTraj:
                 return memo[1]
             xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
             if p:
-                v = plan.Q[p] @ np.array((xk[0], xk[1], xk[2], 1.0))
-                xk = (float(v[0]), float(v[1]), float(v[2]))
+                xk = periodmap.apply(plan.Q[p], xk)
             return xk
         return self._piece(k, p)[1].eval(rest * plan.inv)
 

@@ -171,10 +171,10 @@ class SteadyDrive:
                     break
                 if not c:
                     continue
-                xs = Q[p] @ Xk
+                xs = Xk + Q[p] @ Xk          # Q: delta maps (periodmap)
                 end = st + plan.pieces[p][0]
                 if end <= r:
-                    xe = Q[p + 1] @ Xk
+                    xe = Xk + Q[p + 1] @ Xk
                     i1, th1 = xe[0], xe[2]
                 else:
                     end = r

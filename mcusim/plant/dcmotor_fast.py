@@ -61,8 +61,7 @@ class PeriodicDrive:
             guards = tuple(self._mode_guards(es, s, drive)) + tuple(bguards)
             plan_pieces.append((ticks, flow, absA, absu, guards, drive, (es, s), lin))
             modes.append((es, s))
-            v = flow @ np.array((x[0], x[1], x[2], 1.0))
-            x = (float(v[0]), float(v[1]), float(v[2]))
+            x = periodmap.apply(flow, x)
         key = (P, tuple((o, d, g) for o, d, g in pieces), j, tuple(modes), self._pkey, self.params.R)
         plan = self._plans.get(key)
         if plan is None:
