@@ -46,14 +46,19 @@ class Signal:
     """A notification a peripheral model fires when a state that firmware may be polling changes
     (an ADC conversion completing, a bus byte done). Busy-wait loops in firmware ports
     ``await rtos.wait_signal(sig)`` between polls instead of spinning; it carries no data: the
-    firmware still reads the registers to see what changed."""
+    firmware still reads the registers to see what changed.
 
-    __slots__ = ("_waiters",)
+    ``count`` is how many times it has fired: a poll that read the state at some instant waits with
+    ``wait_signal(sig, since=count_then)`` and does not miss a change that came in between."""
+
+    __slots__ = ("_waiters", "count")
 
     def __init__(self):
         self._waiters = []
+        self.count = 0
 
     def fire(self) -> None:
+        self.count += 1
         waiters, self._waiters = self._waiters, []
         for fn in waiters:
             fn()
@@ -309,13 +314,14 @@ class Rtos:
         return _Req("wfi", None)
 
     @staticmethod
-    def wait_signal(signal: Signal, timeout: int | None = None) -> _Req:
+    def wait_signal(signal: Signal, timeout: int | None = None, since: int | None = None) -> _Req:
         """Block until ``signal`` fires (a busy-wait on a peripheral flag, see :class:`Signal`).
 
         With ``timeout`` (RTOS ticks, like NuttX's ``nxsem_tickwait``) the task also wakes when the
         tick count has advanced by that much; ``await`` returns True if the signal fired, False on
-        a timeout."""
-        return _Req("signal", (signal, timeout))
+        a timeout. With ``since`` (``signal.count`` when the poll read its state) a signal that
+        fired after that returns True at once: the next poll would see the change."""
+        return _Req("signal", (signal, timeout, since))
 
     def interrupt_done(self) -> None:
         if not self._wfi_blocked:
@@ -377,7 +383,11 @@ class Rtos:
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
             self.cpu._busy(task, self.cpu.clock.cycles(req.arg), self._step)
         elif req.kind == "signal":
-            signal, timeout = req.arg
+            signal, timeout, since = req.arg
+            if since is not None and signal.count != since:
+                task.result = True
+                self.kernel.after(0, self._step, task, prio=PRIO_CPU)
+                return
             task.state, task.wake_tick = "blocked", "signal"
             task.deadline = None if timeout is None else self.tick_count + max(1, int(timeout))
             task.on_done = self._step

@@ -158,3 +158,45 @@ def test_driver_overtemperature_is_reported_and_stops_the_motor(module):
     status = host.read("STATUS")
     assert status & P.ST_OVERCURRENT and not status & P.ST_PID_ENABLED
     assert sim.firmware.duty == 0
+
+
+@settings(max_examples=4, deadline=None)
+@given(v=st.floats(5.0, 40.0), sample_ms=st.sampled_from([2, 5, 10]))
+def test_idle_loop_does_not_miss_a_timer0_overflow_that_lands_during_its_pass(v, sample_ms):
+    """An idle loop() pass reads only millis(); on the chip the next pass starts right after it,
+    so the pass that finds the sample due starts within one idle pass of the Timer0 overflow ISR
+    that moved millis(), plus whatever ISRs preempt it. The bug this pins: the loop waited for
+    *any* interrupt after an idle pass, so an overflow that came while an encoder edge's wake-up
+    pass was running was missed until the next edge (up to a whole pass of the encoder's period
+    late; a millisecond when the shaft stands)."""
+    sim = mcusim.load("pro-mini", overrides={"velocity": v, "firmware.sample_ms": sample_ms})
+    fw, cpu, k = sim.firmware, sim.mcu.cpu, sim.kernel
+    hz = sim.timebase.base_hz
+    ovf = []                        # (tick of the ISR body, millis after it)
+    handler, cost = cpu.vectors[16]
+
+    def timer0_ovf():
+        handler()
+        ovf.append((k.now, fw.core.timer0_millis))
+    cpu.vectors[16] = (timer0_ovf, cost)
+    worked = []                     # (tick the pass started, millis it used)
+    loop = fw.loop
+
+    async def traced_loop():
+        t = k.now
+        r = await loop()
+        if r:
+            worked.append((t, fw._last_ms))
+        return r
+    fw.loop = traced_loop
+    sim.run(seconds=0.25)
+    # one OVF ISR (84 cycles with its response) + one idle pass (40) + pay_debt, and the encoder
+    # ISRs (152 cycles each, edges at most every ~30 µs here) that may preempt: 40 µs is ample
+    bound = 40e-6
+    late = []
+    for (t0, m0), (t1, m1) in zip(worked, worked[1:]):
+        due = next((t, m) for t, m in ovf if m - m0 >= sample_ms)
+        assert m1 == due[1], "a worked pass used a later millis() than the one that made it due"
+        if (t1 - due[0]) / hz > bound:
+            late.append(((t1 - due[0]) / hz, t1 / hz))
+    assert len(worked) > 10 and not late, late[:5]

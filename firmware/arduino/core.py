@@ -8,6 +8,9 @@ Function names are the core's in snake_case. Deviations, as the simulation needs
   instead of simulating each pass of the loop.
 * ``delay_microseconds`` (synchronous in the libraries that call it) adds its cycles to a debt the
   running sketch pays at its next ``await core.pay_debt()`` (the module's loop does this each pass).
+* ``millis_changed`` (a :class:`~mcusim.firmware.Signal`) fires when Timer0's overflow ISR has
+  advanced ``timer0_millis``: a ``loop()`` whose idle pass polls only ``millis()`` waits on it
+  instead of running pass after pass that cannot see anything new.
 * ``attach_interrupt`` takes an optional declared cost of the user function in cycles (the
   trampoline in WInterrupts.c is part of the figure; the PJRC Encoder's measured 148 cycles is
   the whole ISR).
@@ -30,6 +33,7 @@ from mcusim.fw.arduino.core_api import (  # noqa: F401
 )
 
 from mcusim.errors import ConfigError
+from mcusim.firmware import Signal
 
 # data-space addresses (iom328p.h)
 PINB, DDRB, PORTB = 0x23, 0x24, 0x25
@@ -63,6 +67,7 @@ class ArduinoCore:
         self.timer0_overflow_count = 0
         self.timer0_millis = 0
         self.timer0_fract = 0
+        self.millis_changed = Signal()
         self.int_func = [None, None]
         self.analog_reference = 1  # DEFAULT: AVcc
         self.debt_cycles = 0
@@ -106,6 +111,7 @@ class ArduinoCore:
         self.timer0_fract = f
         self.timer0_millis = m & 0xFFFFFFFF
         self.timer0_overflow_count = (self.timer0_overflow_count + 1) & 0xFFFFFFFF
+        self.millis_changed.fire()      # simulation: wakes a loop() waiting for millis() to move
 
     def millis(self) -> int:
         old = self._r(SREG)

@@ -13,8 +13,9 @@ stops the motor and raises the STALL fault, and an IS reading at the BTS7960's f
 (current limit or overtemperature) stops it and raises the driver fault; both are cleared over I2C.
 
 The paper gives the structure, not the figures; the constants below are ours (overridable as
-``firmware.<name>``). Between passes that find nothing to do, the loop waits for the next
-interrupt (its state only changes through the Timer0, encoder and TWI interrupts).
+``firmware.<name>``). A pass that finds nothing to do has read only ``millis()``, so instead of
+simulating the passes after it one by one the loop waits until Timer0's overflow ISR moves
+``millis()`` (encoder and TWI interrupts preempt the wait as they preempted those passes).
 """
 
 from __future__ import annotations
@@ -118,11 +119,15 @@ class OpenRoverMcm:
         self.setup()
         await self.core.pay_debt()
         while True:
+            polled = self.core.millis_changed.count
             worked = await self.loop()
             await self.cpu.cycles(self.p["cycles_loop_work"] if worked else self.p["cycles_loop_idle"])
             await self.core.pay_debt()
             if not worked:
-                await self.rtos.wait_for_interrupt()
+                # an idle pass reads only millis(): the passes after it find nothing to do until
+                # Timer0's overflow ISR moves it (their cycles are this wait), so wait for that;
+                # an overflow during this pass means the very next pass sees it
+                await self.rtos.wait_signal(self.core.millis_changed, since=polled)
 
     def setup(self) -> None:
         self.timer1.initialize(50)                 # 50 µs: 20 kHz
