@@ -96,7 +96,7 @@ def apply(D, x):
     """``x`` (i, ω, θ) after the delta map ``D``, as floats."""
     a, b, c = x
     M = D.tolist()
-    return tuple(v + r[0] * a + r[1] * b + r[2] * c + r[3] for v, r in zip(x, M[:3]))
+    return tuple(v + (r[0] * a + r[1] * b + r[2] * c + r[3]) for v, r in zip(x, M[:3]))
 
 
 class PowerTable:

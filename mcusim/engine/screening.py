@@ -51,6 +51,7 @@ class PeriodPlan:
         for pc in pieces:
             Q.append(periodmap.then(Q[-1], pc[1]))
         self.Q = Q
+        self.Ql = [q.tolist() for q in Q]      # the same, as lists (one state at a time)
         self.T = Q[-1]
         self.table = PowerTable(self.T, n)
         self.starts = []   # tick offset of each piece from the period start
@@ -127,6 +128,25 @@ class ChunkTraj:
         self.periods = len(X) - 1
         self._piece_memo = (None, None, None)   # (tick offset of a piece start, its state, closed form)
         self._theta = None                   # θ at the period starts, as floats (first_fire)
+        self._rows = {}                      # period q -> X[q] as floats
+
+    def _row(self, q: int):
+        r = self._rows.get(q)
+        if r is None:
+            r = self._rows[q] = self.X[q].tolist()
+        return r
+
+    def _start(self, q: int, p: int):
+        """State at the start of piece ``p`` of period ``q`` (the one expression every reader of a
+        piece start uses, so they agree to the bit)."""
+        if not p:
+            return self.x0 if q == 0 else tuple(self._row(q)[:3])
+        xq = self.x0 if q == 0 else self._row(q)
+        a, b, c = xq[0], xq[1], xq[2]
+        M = self.plan.Ql[p]
+        return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
+                b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),
+                c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
 
     def first_fire(self, g, after: int, inv: float):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
@@ -157,15 +177,20 @@ class ChunkTraj:
         # θ is monotone: the crossing lies in the period ending at the first fired boundary kb
         q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
+        Ql = plan.Ql
         for q in range(q0, min(q0 + 2, self.periods)):
-            Xq = self.X[q]
+            Xq = self._row(q)
             for p, pc in enumerate(plan.pieces):
                 ts = q * P + plan.starts[p]
                 te = ts + pc[0]
                 if te <= after:
                     continue
                 # θ at the piece end (monotone in the chunk): no crossing in this piece if not fired
-                the = float(Xq[2] + plan.Q[p + 1][2] @ Xq) if p + 1 < npc else float(self.X[q + 1][2])
+                if p + 1 < npc:
+                    r = Ql[p + 1][2]
+                    the = Xq[2] + (r[0] * Xq[0] + r[1] * Xq[1] + r[2] * Xq[2] + r[3])
+                else:
+                    the = th[q + 1]
                 he = the * ct + c0
                 if not (he < 0.0 if strict else he <= 0.0):
                     continue
@@ -186,9 +211,7 @@ class ChunkTraj:
         memo = self._piece_memo
         if memo[0] == ts:
             return memo[1], memo[2]
-        xk = self.x0 if q == 0 else plan.table.state(self.x0, q)
-        if p:
-            xk = periodmap.apply(plan.Q[p], xk)
+        xk = self._start(q, p)
         tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
         self._piece_memo = (ts, xk, tr)
         return xk, tr
@@ -208,10 +231,7 @@ class ChunkTraj:
             memo = self._piece_memo
             if memo[0] == n:
                 return memo[1]
-            xk = self.x0 if k == 0 else plan.table.state(self.x0, k)
-            if p:
-                xk = periodmap.apply(plan.Q[p], xk)
-            return xk
+            return self._start(k, p)
         return self._piece(k, p)[1].eval(rest * plan.inv)
 
     def peak(self, n: int) -> float:
@@ -223,11 +243,11 @@ class ChunkTraj:
         npc = len(plan.pieces)
         if k:
             S = plan.states_at_piece_starts(self.x0, k)            # (k, pieces, 3)
-            best = max(best, float(np.abs(S[:, :, 0]).max()), abs(plan.table.state(self.x0, k)[0]))
+            best = max(best, float(np.abs(S[:, :, 0]).max()), abs(float(self.X[k][0])))
             for p, pc in enumerate(plan.pieces):
                 a11, a12, u1 = pc[7]
                 xs = S[:, p]
-                xe = S[:, p + 1] if p + 1 < npc else plan.table.states(self.x0, k)[1:]
+                xe = S[:, p + 1] if p + 1 < npc else self.X[1:k + 1, :3]
                 ds = a11 * xs[:, 0] + a12 * xs[:, 1] + u1
                 de = a11 * xe[:, 0] + a12 * xe[:, 1] + u1
                 # a stationary point of i inside the piece: di/dt changes sign between its ends, or
