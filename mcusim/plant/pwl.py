@@ -115,12 +115,17 @@ def _make(kind, x0, b, c, lam1, lam2, d1, d2, cplx):
     tr = Traj()
     tr.kind, tr.x0, tr.b, tr.c = kind, tuple(x0), b, c
     tr.lam1, tr.lam2, tr.d1, tr.d2, tr.cplx = lam1, lam2, d1, d2, cplx
+    c0, c1, c2 = c
     if cplx:
         l2 = abs(lam1) ** 2
-        tr.m2 = tuple(2.0 * abs(c[j]) + 2.0 * abs(d1[j]) * l2 for j in range(3))
+        e0, e1, e2 = d1
+        tr.m2 = (2.0 * abs(c0) + 2.0 * abs(e0) * l2, 2.0 * abs(c1) + 2.0 * abs(e1) * l2,
+                 2.0 * abs(c2) + 2.0 * abs(e2) * l2)
     else:
         s1, s2 = lam1 * lam1, lam2 * lam2
-        tr.m2 = tuple(2.0 * abs(c[j]) + abs(d1[j]) * s1 + abs(d2[j]) * s2 for j in range(3))
+        (e0, e1, e2), (f0, f1, f2) = d1, d2
+        tr.m2 = (2.0 * abs(c0) + abs(e0) * s1 + abs(f0) * s2, 2.0 * abs(c1) + abs(e1) * s1 + abs(f1) * s2,
+                 2.0 * abs(c2) + abs(e2) * s1 + abs(f2) * s2)
     return tr
 
 
