@@ -30,7 +30,8 @@ from ..plant import pwl
 from . import periodmap
 from .periodmap import PowerTable
 
-#: relative safety margin of a screened guard value (float rounding of the maps, ~1e-12, times 1000)
+#: relative safety margin of a screened guard value (far above the maps' float rounding, ~1e-15 in
+#: delta form, and the screening's own numpy rounding)
 MARGIN = 1e-9
 
 
@@ -137,8 +138,10 @@ class ChunkTraj:
         return r
 
     def _start(self, q: int, p: int):
-        """State at the start of piece ``p`` of period ``q`` (the one expression every reader of a
-        piece start uses, so they agree to the bit)."""
+        """State at the start of piece ``p`` of period ``q``: the one expression that the readers of
+        a state (``at``), the threshold search and the piece closed forms all use, so they agree to
+        the bit. (``peak`` screens whole arrays of piece starts with numpy, which may differ in the
+        last bit; it only bounds the peak current.)"""
         if not p:
             return self.x0 if q == 0 else tuple(self._row(q)[:3])
         xq = self.x0 if q == 0 else self._row(q)
