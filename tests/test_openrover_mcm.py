@@ -5,6 +5,8 @@ twi.c's ISR and Wire's callbacks in the sketch, the register map of docs/openrov
 """
 
 
+import itertools
+
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
@@ -197,7 +199,7 @@ def test_idle_loop_does_not_miss_a_timer0_overflow_that_lands_during_its_pass(v,
     # (the worst measured is 14.5 µs)
     bound = 40e-6
     late = []
-    for (t0, m0), (t1, m1) in zip(worked, worked[1:]):
+    for (_, m0), (t1, m1) in itertools.pairwise(worked):
         due = next((t, m) for t, m in ovf if m - m0 >= sample_ms)
         assert m1 == due[1], "a worked pass used a later millis() than the one that made it due"
         if (t1 - due[0]) / hz > bound:

@@ -94,9 +94,15 @@ def compose(flows):
 
 def apply(D, x):
     """``x`` (i, ω, θ) after the delta map ``D``, as floats."""
+    return apply_rows(D.tolist(), x)
+
+
+def apply_rows(M, x):
+    """:func:`apply` with the map as nested lists (``D.tolist()``, kept by whoever applies it often)."""
     a, b, c = x
-    M = D.tolist()
-    return tuple(v + (r[0] * a + r[1] * b + r[2] * c + r[3]) for v, r in zip(x, M[:3]))
+    return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
+            b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),
+            c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
 
 
 class PowerTable:

@@ -39,8 +39,8 @@ class PeriodPlan:
     """One period of pieces starting at a piece boundary, with its maps, guards and power table.
 
     ``pieces``: list of ``(ticks, flow, absA, absu, guards, drive, mode)`` in time order, where
-    ``flow`` is the augmented 4×4 delta map of the piece (:mod:`.periodmap`: ``T − I``), ``absA``/``absu`` the absolute values of the
-    piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
+    ``flow`` is the augmented 4×4 delta map of the piece (``T − I``, :mod:`.periodmap`),
+    ``absA``/``absu`` the absolute values of the piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
     """
 
     def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int):
@@ -144,12 +144,7 @@ class ChunkTraj:
         last bit; it only bounds the peak current.)"""
         if not p:
             return self.x0 if q == 0 else tuple(self._row(q)[:3])
-        xq = self.x0 if q == 0 else self._row(q)
-        a, b, c = xq[0], xq[1], xq[2]
-        M = self.plan.Ql[p]
-        return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
-                b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),
-                c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
+        return periodmap.apply_rows(self.plan.Ql[p], self.x0 if q == 0 else self._row(q)[:3])
 
     def first_fire(self, g, after: int, inv: float):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
