@@ -512,12 +512,7 @@ class DcMotor(PeriodicDrive):
                 self._rebuild_periodic(sched, x0)
                 return
         drive = self._driver.drive_state() if self._driver is not None else OPEN_CIRCUIT
-        es, s = self._select(x0, drive)
-        self._es, self._s = es, s
-        tr = self._traj = self._build(x0, drive, es, s)
-        self.segments += 1
-        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
-        self._grow = False
+        tr, es, s = self._new_segment(x0, drive)
         guards = [] if tr.kind == "static" else self._mode_guards(es, s, drive)
         for prov in self._providers:
             guards.extend(prov.plant_guards())
@@ -527,6 +522,17 @@ class DcMotor(PeriodicDrive):
         if not guards:
             return
         self._screen(tr, x0, guards)
+
+    def _new_segment(self, x0, drive):
+        """Select the mode at ``x0`` under ``drive`` and start its closed-form segment (the horizon
+        doubles while segments end at it, else starts over)."""
+        es, s = self._select(x0, drive)
+        self._es, self._s = es, s
+        tr = self._traj = self._build(x0, drive, es, s)
+        self.segments += 1
+        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
+        self._grow = False
+        return tr, es, s
 
     def _screen(self, tr, x0, guards, limit=None):
         """Locate the first guard to fire within the horizon (or ``limit`` ticks, the end of a

@@ -168,12 +168,7 @@ class PeriodicDrive:
         # one piece, edge by edge: the reference engine's segment, screened up to the piece end
         n_end = (pieces[j + 1][0] if j + 1 < len(pieces) else P) - ph
         drive = pieces[j][1]
-        es, s = self._select(x0, drive)
-        self._es, self._s = es, s
-        tr = self._traj = self._build(x0, drive, es, s)
-        self.segments += 1
-        self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
-        self._grow = False
+        tr, es, s = self._new_segment(x0, drive)
         if tr.kind == "static":
             self._ev = self.kernel.at(now + n_end, self._on_piece_end, prio=PRIO_HW)
             return
