@@ -16,7 +16,8 @@ change, and that same rounding, repeated every period, drifts the state coherent
 relative over thousands of periods). In delta form the change itself is computed to full precision
 (``expm1``), products compose as ``(I + B)(I + A) − I = A + B + B·A``, and what remains is the
 rounding of one addition per state, as in the edge-by-edge engine's own closed-form steps. The two
-engines then agree to ~1e-15 relative, which matters beyond the 1e-9 plant tolerance: an encoder
+engines then agree to ~1e-15 relative (of each piece's steady state, the scale the closed forms
+round at), which matters beyond the 1e-9 plant tolerance: an encoder
 threshold crossing that lies that close to a tick boundary can only land on different ticks if the
 engines' states differ by more.
 """
