@@ -89,6 +89,33 @@ def test_first_fire_finds_the_first_tick_a_brute_force_scan_finds(l1, l2, d1, d2
     assert got == brute
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 5000), st.floats(-3.0, 3.0), st.floats(0.0, 6.0), st.integers(-20, 5020), st.booleans(),
+       st.booleans())
+def test_monotone_search_finds_the_first_fired_tick_a_scan_finds(nb, curve, power, root, strict, at_root):
+    """first_fire_monotone: for any guard decreasing over (0, nb] (linear, or bent as far as a
+    power law or an exponential bends it), the first fired tick, or None, exactly as a scan finds
+    it; a guard that is nearly linear (an encoder threshold inside one PWM piece) takes at most
+    four evaluations besides the two ends (two when the secant lands on the crossing)."""
+    def h(n):
+        x = (n - root) / max(nb, 1)
+        bent = math.copysign(abs(x) ** (1.0 + power), x) if curve >= 0 else math.expm1(-curve * x)
+        return -(x + abs(curve) * bent) if not at_root else float(root - n)
+    calls = []
+
+    def h_at(n):
+        calls.append(n)
+        return h(n)
+    fired = (lambda v: v < 0.0) if strict else (lambda v: v <= 0.0)
+    h0 = h(0)
+    if fired(h0):
+        return                      # the guard is taken as not fired at the start
+    brute = next((n for n in range(1, nb + 1) if fired(h(n))), None)
+    assert pwl.first_fire_monotone(h_at, 0, nb, h0, h(nb), strict) == brute
+    if at_root or curve == 0.0:     # linear: the secant lands on the crossing
+        assert len(calls) <= 4, calls
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.floats(0.1, 5.0), st.floats(1e-4, 1e-1), st.floats(1e-3, 0.2), st.floats(1e-7, 1e-3),
        st.floats(0.0, 1e-3), st.floats(-20, 20), st.floats(-50, 50), st.floats(1e-5, 5e-2))

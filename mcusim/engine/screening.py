@@ -128,6 +128,7 @@ class ChunkTraj:
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1
         self._piece_memo = (None, None, None)   # (tick offset of a piece start, its state, closed form)
+        self._evals = {}                     # tick in that piece -> its state (see _eval)
         self._theta = None                   # θ at the period starts, as floats (first_fire)
         self._rows = {}                      # period q -> X[q] as floats
 
@@ -176,6 +177,8 @@ class ChunkTraj:
         q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
         Ql = plan.Ql
+        ev, hval = self._eval, pwl.hval
+        h_at = lambda j: hval(g, ev(j))     # the guard j ticks into the current piece
         for q in range(q0, min(q0 + 2, self.periods)):
             Xq = self._row(q)
             for p, pc in enumerate(plan.pieces):
@@ -192,11 +195,11 @@ class ChunkTraj:
                 he = the * ct + c0
                 if not (he < 0.0 if strict else he <= 0.0):
                     continue
-                xs, tr = self._piece(q, p)
+                self._piece(q, p)
                 lo, n = max(after - ts, 0), te - ts
-                ha = pwl.hval(g, tr.eval(lo * inv) if lo else xs)
-                hb = pwl.hval(g, tr.eval(n * inv))
-                k = pwl.first_fire_monotone(lambda j, tr=tr: pwl.hval(g, tr.eval(j * inv)), lo, n, ha, hb, strict)
+                # the guard at the piece end is ``he``: the state there is the next piece's start,
+                # from the period rows, as ``at`` reads it
+                k = pwl.first_fire_monotone(h_at, lo, n, h_at(lo), he, strict)
                 if k is not None:
                     return ts + k
         return None
@@ -212,7 +215,17 @@ class ChunkTraj:
         xk = self._start(q, p)
         tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
         self._piece_memo = (ts, xk, tr)
+        self._evals = {}
         return xk, tr
+
+    def _eval(self, j: int):
+        """State ``j`` ticks into the piece last made current by :meth:`_piece`. Kept per tick: an
+        encoder edge's search ends on the tick its event comes back to read (the encoder reads θ
+        there), and the next edge's search starts from it, against the same piece end."""
+        x = self._evals.get(j)
+        if x is None:
+            x = self._evals[j] = self._piece_memo[2].eval(j * self.plan.inv) if j else self._piece_memo[1]
+        return x
 
     def at(self, n: int):
         """State n ticks after the chunk start."""
@@ -230,7 +243,8 @@ class ChunkTraj:
             if memo[0] == n:
                 return memo[1]
             return self._start(k, p)
-        return self._piece(k, p)[1].eval(rest * plan.inv)
+        self._piece(k, p)
+        return self._eval(rest)
 
     def peak(self, n: int) -> float:
         """Largest |i| over the first n ticks: at every piece boundary and at the current's

@@ -236,11 +236,17 @@ def guard_m2(g, m2) -> float:
 
 def first_fire_monotone(h_at, na: int, nb: int, ha: float, hb: float, strict: bool):
     """:func:`first_fire` for a guard known to be monotone on [na, nb] (its fired ticks are a
-    suffix): the first fired tick in (na, nb], or None, bracketed by secant steps with a bisection
-    fallback. Exact for the same reason as first_fire: the answer n is fired and n − 1 is not."""
+    suffix): the first fired tick in (na, nb], or None. Exact for the same reason as first_fire:
+    the answer n is fired and n − 1 is not.
+
+    Each step evaluates the secant point m and its neighbour towards the other side: a guard that
+    is nearly linear over the interval (an encoder threshold within one PWM piece) is settled by
+    two such steps at most, usually one. Every second unsettled step also halves the bracket, so
+    a strongly bent guard costs at most ~6·log2(nb − na) evaluations."""
     if not (hb < 0.0 if strict else hb <= 0.0):
         return None
     lo, hi, hlo, hhi = na, nb, ha, hb
+    second = True
     while hi - lo > 1:
         d = hlo - hhi
         m = lo + int((hi - lo) * (hlo / d)) if d > 0.0 else (lo + hi) >> 1
@@ -249,15 +255,29 @@ def first_fire_monotone(h_at, na: int, nb: int, ha: float, hb: float, strict: bo
         hm = h_at(m)
         if hm < 0.0 if strict else hm <= 0.0:
             hi, hhi = m, hm
-            if m - lo > 1 and hi - lo > 4 and (lo + hi) >> 1 != m:   # secant from above: bracket
-                mb = (lo + hi) >> 1
-                hmb = h_at(mb)
-                if hmb < 0.0 if strict else hmb <= 0.0:
-                    hi, hhi = mb, hmb
+            if m - 1 > lo:                       # fired at m: is m − 1 not?
+                m -= 1
+                hm = h_at(m)
+                if hm < 0.0 if strict else hm <= 0.0:
+                    hi, hhi = m, hm
                 else:
-                    lo, hlo = mb, hmb
+                    return hi
         else:
             lo, hlo = m, hm
+            if m + 1 < hi:                       # not fired at m: is m + 1?
+                m += 1
+                hm = h_at(m)
+                if hm < 0.0 if strict else hm <= 0.0:
+                    return m
+                lo, hlo = m, hm
+        second = not second
+        if second and hi - lo > 4:               # the second unsettled step: halve the bracket too
+            mb = (lo + hi) >> 1
+            hmb = h_at(mb)
+            if hmb < 0.0 if strict else hmb <= 0.0:
+                hi, hhi = mb, hmb
+            else:
+                lo, hlo = mb, hmb
     return hi
 
 
