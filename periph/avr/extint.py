@@ -37,7 +37,7 @@ class ExtInt(Peripheral):
     def _edge(self, n, level):
         isc = self._sense(n)
         if isc == 0:
-            self._update(0, 0)
+            self._request(n)
         elif isc == 1 or (isc == 2 and not level) or (isc == 3 and level):
             t = self.clock.next_edge(self.kernel.now)
             if t == self.kernel.now:
@@ -49,18 +49,22 @@ class ExtInt(Peripheral):
         if self.value["EIFR"] >> n & 1:
             self.edges_lost[n] += 1
         self.set_bits("EIFR", 1 << n)
-        self._update(0, 0)
+        self._request(n)            # INTFn changed, nothing else
 
     def _clear(self, n):
         if self._sense(n) != 0:
             self.clear_bits("EIFR", 1 << n)
-            self._update(0, 0)
+            self._request(n)
 
     def _update(self, old, new):
-        mask = self.value["EIMSK"]
         for n in range(2):
-            if self._sense(n) == 0:
-                req = not self.nets[n].level
-            else:
-                req = bool(self.value["EIFR"] >> n & 1)
-            self.irq.set_line(self.vectors[n], req and bool(mask >> n & 1))
+            self._request(n)
+
+    def _request(self, n):
+        """Interrupt request of INTn: the pin low (level mode) or INTFn, AND INTn in EIMSK."""
+        value = self.value
+        if (value["EICRA"] >> (2 * n)) & 3 == 0:
+            req = not self.nets[n].level
+        else:
+            req = bool(value["EIFR"] >> n & 1)
+        self.irq.set_line(self.vectors[n], req and bool(value["EIMSK"] >> n & 1))
