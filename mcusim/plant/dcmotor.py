@@ -464,11 +464,11 @@ class DcMotor(PeriodicDrive):
         if s == 0:
             return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
         T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-        eig, A, u = self._full_system(rt, v0, T)
-        return pwl.affine2(eig, A, u, x0)
+        return pwl.affine2_from(self._full_system(rt, v0, T)[3], x0)
 
     def _full_system(self, rt, v0, T):
-        """(eig, A, u) of the full (i, ω) system for loop resistance rt, voltage v0, torque term T."""
+        """(eig, A, u, affine2_system) of the full (i, ω) system for loop resistance rt, voltage v0,
+        torque term T."""
         p = self.params
         key = (rt, v0, T, self._pkey)
         ent = self._full_cache.get(key)
@@ -480,7 +480,8 @@ class DcMotor(PeriodicDrive):
                 eig = self._eig_cache[ekey] = pwl.eig2(*A)
             if len(self._full_cache) > 256:
                 self._full_cache.clear()
-            ent = self._full_cache[key] = (eig, A, (v0 / p.L, -T / self._J))
+            u = (v0 / p.L, -T / self._J)
+            ent = self._full_cache[key] = (eig, A, u, pwl.affine2_system(eig, A, u))
         return ent
 
     def _mode_guards(self, es, s, drive):

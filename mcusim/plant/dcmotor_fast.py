@@ -40,7 +40,7 @@ class PeriodicDrive:
             return (periodmap.stuck_flow(lam, i_ss, tau), np.array(((abs(lam), 0.0), (0.0, 0.0))),
                     np.array((abs(lam * i_ss), 0.0)), (lam, 0.0, -lam * i_ss))
         T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-        eig, A, u = self._full_system(rt, v0, T)
+        eig, A, u, _ = self._full_system(rt, v0, T)
         return (periodmap.full_flow(eig, A, u, tau), np.abs(np.array(((A[0], A[1]), (A[2], A[3])))),
                 np.abs(np.array(u)), (A[0], A[1], u[0]))
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 import cmath
 import math
 
-__all__ = ["Traj", "affine2", "eig2", "first_fire", "first_order_x1", "first_order_x2", "hval", "static"]
+__all__ = ["Traj", "affine2", "affine2_from", "affine2_system", "eig2", "first_fire", "first_order_x1", "first_order_x2", "hval", "static"]
 
 
 class Traj:
@@ -176,22 +176,33 @@ def affine2(eig, A, u, x0):
 
     ``eig`` is :func:`eig2` of ``A``; ``A = (a11, a12, a21, a22)``; ``u = (u1, u2)``.
     """
+    return affine2_from(affine2_system(eig, A, u), x0)
+
+
+def affine2_system(eig, A, u):
+    """What :func:`affine2` computes from the system alone (the steady state ``-A⁻¹u`` and the
+    eigen-decomposition): cached by a caller that starts many segments of one system."""
     a11, a12, a21, a22 = A
     u1, u2 = u
     det = a11 * a22 - a12 * a21
     # steady state x_ss = -A^{-1} u
     s1 = -(a22 * u1 - a12 * u2) / det
     s2 = -(-a21 * u1 + a11 * u2) / det
-    l1, l2, V, Vi, cplx = eig
+    return (s1, s2, (0.0, 0.0, s2)) + tuple(eig)
+
+
+def affine2_from(system, x0):
+    """:func:`affine2` from :func:`affine2_system`'s result."""
+    s1, s2, b, l1, l2, V, Vi, cplx = system
     y1, y2 = x0[0] - s1, x0[1] - s2
     al1 = Vi[0][0] * y1 + Vi[0][1] * y2
     if cplx:
         d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
-        return _make("full", x0, (0.0, 0.0, s2), _Z3, l1, l2, d1, _Z3, True)
+        return _make("full", x0, b, _Z3, l1, l2, d1, _Z3, True)
     al2 = Vi[1][0] * y1 + Vi[1][1] * y2
     d1 = (V[0][0] * al1, V[1][0] * al1, V[1][0] * al1 / l1)
     d2 = (V[0][1] * al2, V[1][1] * al2, V[1][1] * al2 / l2)
-    return _make("full", x0, (0.0, 0.0, s2), _Z3, l1, l2, d1, d2, False)
+    return _make("full", x0, b, _Z3, l1, l2, d1, d2, False)
 
 
 def first_order_x1(lam: float, x1_ss: float, x0):
