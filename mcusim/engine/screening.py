@@ -52,6 +52,7 @@ class PeriodPlan:
         for pc in pieces:
             Q.append(periodmap.then(Q[-1], pc[1]))
         self.Q = Q
+        self.QT = [q.T for q in Q]             # the transposes (views) the screening multiplies by
         self.Ql = [q.tolist() for q in Q]      # the same, as lists (one state at a time)
         self.T = Q[-1]
         self.table = PowerTable(self.T, n)
@@ -72,43 +73,63 @@ class PeriodPlan:
                 continue
             # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
             W = np.array(((m11 / det, -m01 / det), (-m10 / det, m00 / det)))
-            self.bounds.append((W, W @ (tau * absu), tau, absA, absu))
+            self.bounds.append((W.T, W @ (tau * absu), tau, absA.T, absu))
+        # the same per piece, stacked (first_flag screens all pieces of all periods at once)
+        npc = len(pieces)
+        self._bounded = None not in self.bounds
+        if self._bounded:
+            Wt, w, tau, At, u = (np.stack([b[i] for b in self.bounds]) for i in range(5))
+            self._Wt, self._w, self._tau = Wt, w[:, None, :], tau[:, None, None]
+            self._At, self._u = At, u[:, None, :]
+        # Q[1..npc-1] side by side: one product gives every inner piece start
+        self._QTcat = np.concatenate(self.QT[1:npc], axis=1) if npc > 1 else None
+        self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
 
     def first_flag(self, x0, n: int, extra_guards):
         """(k, X, ib): the first period k (0..n) in which a guard may fire (n if none fires in n
         periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), and a bound of |i|
         over those k periods (at least as large as the largest |i| in them)."""
         X = self.table.augmented_states(x0, n)   # (n+1, 4)
-        flag = n
-        ib = 0.0
-        npieces = len(self.pieces)
-        for p, pc in enumerate(self.pieces):
-            b = self.bounds[p]
-            if b is None:
-                return 0, X[:1], ib
-            W, w, tau, absA, absu = b
-            S = X[:flag] + X[:flag] @ self.Q[p].T if p else X[:flag]
-            E = X[:flag] + X[:flag] @ self.Q[p + 1].T if p + 1 < npieces else X[1:flag + 1]
-            ab = np.abs(S[:, :2])
-            xb = ab @ W.T + w                      # bound of |i|, |ω| inside the piece
-            ib = max(ib, float(xb[:, 0].max()))
-            D = xb @ absA.T + absu                 # bound of |di/dt|, |dω/dt|
-            guards = pc[4] + extra_guards
-            if not guards:
-                continue
-            G = np.array([g[:4] for g in guards], dtype=float)       # rows (ci, cw, cθ, c0)
-            aG = np.abs(G)
-            hs = S @ G.T                                              # (periods, guards)
-            he = E @ G.T
-            lip = tau * (D @ aG[:, :2].T + xb[:, 1:2] * aG[:, 2])
-            scale = (np.abs(S[:, :3]) @ aG[:, :3].T + aG[:, 3]) * MARGIN
-            anybad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=1)
-            if anybad.any():
-                flag = int(np.argmax(anybad))
-                if flag == 0:
-                    return 0, X[:1], ib
-                X = X[:flag + 1]
-        return flag, X, ib
+        if not self._bounded or n == 0:
+            return 0, X[:1], 0.0
+        arrays = self._screens.get(extra_guards)
+        if arrays is None:
+            if len(self._screens) > 16:
+                self._screens.clear()
+            arrays = self._screens[extra_guards] = self._guard_arrays(extra_guards)
+        G, aGd, aGth, aGx, aG0 = arrays
+        npc = len(self.pieces)
+        # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
+        Xn = X[:n]
+        St = np.empty((npc + 1, n, 4))
+        St[0] = Xn
+        if npc > 1:
+            St[1:npc] = (Xn @ self._QTcat).reshape(n, npc - 1, 4).swapaxes(0, 1) + Xn
+        St[npc] = X[1:]
+        S, E = St[:-1], St[1:]                  # (pieces, periods, 4) at each piece's start and end
+        xb = np.abs(S[:, :, :2]) @ self._Wt + self._w   # bound of |i|, |ω| inside the piece
+        D = xb @ self._At + self._u                      # bound of |di/dt|, |dω/dt|
+        hs = S @ G                                       # (pieces, periods, guards)
+        he = E @ G
+        lip = self._tau * (D @ aGd + xb[:, :, 1:2] * aGth)
+        scale = (np.abs(S[:, :, :3]) @ aGx + aG0) * MARGIN
+        bad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=(0, 2))
+        k = int(np.argmax(bad)) if bad.any() else n
+        if k == 0:
+            return 0, X[:1], 0.0
+        return k, X[:k + 1], float(xb[:, :k, 0].max())
+
+    def _guard_arrays(self, extra_guards):
+        """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
+        multiplies by: G (pieces, 4, guards) with columns (ci, cw, cθ, c0), and the parts of |G|
+        the bounds use. Pieces with fewer guards are padded with h ≡ 1, which never flags."""
+        rows = [[g[:4] for g in pc[4] + extra_guards] for pc in self.pieces]
+        m = max(1, max(len(r) for r in rows))
+        G = np.array([r + [(0.0, 0.0, 0.0, 1.0)] * (m - len(r)) for r in rows], dtype=float)
+        aG = np.abs(G)                                   # (pieces, guards, 4)
+        Gt = G.transpose(0, 2, 1)
+        aGt = aG.transpose(0, 2, 1)
+        return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4]
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
