@@ -2,8 +2,10 @@
 
 ISCn1:0 = 00 low level, 01 any change, 10 falling edge, 11 rising edge. An edge sets INTFn on the
 next CPU clock edge (the edge detector runs on the I/O clock); INTFn is cleared by writing 1 or on
-vector entry. In level mode there is no flag: the request lasts while the pin is low. An edge that
-arrives while INTFn is already set is lost, as on the chip.
+vector entry. In level mode there is no flag: the request lasts while the pin is low, and INTFn
+"is always cleared when INTn is configured as a level interrupt" (§13.2.3): switching ISCn to 00
+clears a flag an earlier edge left set. An edge that arrives while INTFn is already set is lost, as
+on the chip.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ class ExtInt(Peripheral):
                 self.kernel.at(t, self._set_flag, n)
 
     def _set_flag(self, n):
+        if self._sense(n) == 0:     # switched to level mode since the edge: no flag there
+            return
         if self.value["EIFR"] >> n & 1:
             self.edges_lost[n] += 1
         self.set_bits("EIFR", 1 << n)
@@ -64,6 +68,8 @@ class ExtInt(Peripheral):
         """Interrupt request of INTn: the pin low (level mode) or INTFn, AND INTn in EIMSK."""
         value = self.value
         if (value["EICRA"] >> (2 * n)) & 3 == 0:
+            if value["EIFR"] >> n & 1:
+                self.clear_bits("EIFR", 1 << n)     # always cleared in level mode
             req = not self.nets[n].level
         else:
             req = bool(value["EIFR"] >> n & 1)
