@@ -195,6 +195,7 @@ class ChunkTraj:
         plan = self.plan
         P = plan.P
         # θ is monotone: the crossing lies in the period ending at the first fired boundary kb
+        # (period q0 then; q0 + 1 is searched only if rounding made the rows non-monotone)
         q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
         Ql = plan.Ql
