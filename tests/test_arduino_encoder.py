@@ -9,8 +9,12 @@ import inspect
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcusim.fw.arduino import encoder as enc_mod
+from mcusim.fw.arduino.core import TCCR1A
+from mcusim.fw.arduino.core import ArduinoCore as RealCore
 from mcusim.fw.arduino.core_api import CHANGE, INPUT_PULLUP, NOT_AN_INTERRUPT, ArduinoCore
 from mcusim.fw.arduino.encoder import ISR_CYCLES, Encoder, EncoderInternalState
+
+import mcusim
 
 
 class FakeCore:
@@ -48,6 +52,16 @@ class FakeCore:
 
     def delay_microseconds(self, us):
         self.delays.append(us)
+
+    # pin registers: pin p reads as bit 0 of a register at 1000 + p
+    def port_input_register(self, pin):
+        return 1000 + pin
+
+    def digital_pin_to_bit_mask(self, pin):
+        return 1
+
+    def read8(self, addr):
+        return self.digital_read(addr - 1000)
 
     # test side
     def set_pin(self, pin, level):
@@ -91,7 +105,7 @@ def test_constructor_sets_pullups_waits_2000us_reads_state_and_attaches_change_i
 def test_update_table_index_is_new2_new1_old2_old1():
     for index, delta in TABLE.items():
         core = FakeCore({2: (index >> 2) & 1, 3: (index >> 3) & 1})
-        st_ = EncoderInternalState(core, 2, 3, state=index & 3, position=0)
+        st_ = EncoderInternalState(core, 1002, 1003, 1, 1, state=index & 3, position=0)
         Encoder.update(st_)
         assert st_.position == delta, index
         assert st_.state == index >> 2
@@ -195,3 +209,20 @@ def test_single_quadrature_steps_count_exactly(phase, start, steps):
         core.set_pin(3, p2)
     true = start + sum(steps)
     assert enc.read() == ((true + 2**31) % 2**32) - 2**31
+
+
+def test_update_reads_pin_registers_directly_and_leaves_a_pwm_output_on():
+    """Encoder.h reads PINx with DIRECT_PIN_READ, not digitalRead, whose turnOffPWM would
+    disconnect Timer1 from a PWM pin the encoder shares. On the simulated 328P: pin2 on D9
+    with analogWrite(9, 128) running; read() polls update() (D9 has no interrupt) and OC1A stays
+    connected (COM1A1 set)."""
+    sim = mcusim.load("pro-mini", firmware=False)
+    core = RealCore(sim.mcu)
+    core.init()
+    core.analog_write(9, 128)
+    enc = Encoder(core, 2, 9)
+    assert enc.interrupts_in_use == 1
+    sim.run(cycles=5000)
+    enc.read()
+    assert core.read8(TCCR1A) & (1 << 7)                  # COM1A1: PWM still on D9
+    assert enc.encoder.pin2_register == 0x23 and enc.encoder.pin2_bitmask == 1 << 1   # PINB, bit 1

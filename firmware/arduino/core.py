@@ -178,6 +178,15 @@ class ArduinoCore:
         self._turn_off_pwm(pin)
         return HIGH if self._r(pin_reg) & bit else LOW
 
+    # --- Arduino.h pin macros, for libraries that read registers directly -----------------------
+    def port_input_register(self, pin: int) -> int:
+        return self._port(pin)[0][0]
+
+    def digital_pin_to_bit_mask(self, pin: int) -> int:
+        return self._port(pin)[1]
+
+    read8 = _r
+
     # --- wiring_analog.c --------------------------------------------------------------------
     def analog_write(self, pin: int, val: int) -> None:
         self.pin_mode(pin, OUTPUT)

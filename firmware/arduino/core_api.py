@@ -40,6 +40,15 @@ class ArduinoCore(Protocol):
     def delay_microseconds(self, us: int) -> None:
         """delayMicroseconds(us): busy wait."""
 
+    def port_input_register(self, pin: int) -> int:
+        """portInputRegister(digitalPinToPort(pin)): the data-space address of the pin's PINx."""
+
+    def digital_pin_to_bit_mask(self, pin: int) -> int:
+        """digitalPinToBitMask(pin): the pin's bit in its port registers."""
+
+    def read8(self, addr: int) -> int:
+        """One byte load from data space (``*(volatile uint8_t *)addr``)."""
+
 
 @runtime_checkable
 class DataBus(Protocol):

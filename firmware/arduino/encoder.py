@@ -1,7 +1,9 @@
 """Encoder.h, PJRC Encoder 1.4.4, on the ATmega328P (CORE_INT0_PIN = 2, CORE_INT1_PIN = 3).
 
-``DIRECT_PIN_READ`` becomes ``core.digital_read(pin)``, and ``attachInterrupt``/``noInterrupts``/
-``interrupts``/``delayMicroseconds`` go through the injected Arduino core (see ``core_api``).
+``PIN_TO_BASEREG``/``PIN_TO_BITMASK`` and ``DIRECT_PIN_READ`` read the PINx register through the
+injected Arduino core (see ``core_api``), as the C does: not ``digitalRead``, which would also turn
+off a PWM output on the pin. ``attachInterrupt``/``noInterrupts``/``interrupts``/
+``delayMicroseconds`` go through the core too.
 The build is the default one: ``ENCODER_USE_INTERRUPTS`` through the core's ``attachInterrupt``
 trampoline, not ``ENCODER_OPTIMIZE_INTERRUPTS``.
 """
@@ -28,12 +30,19 @@ def _int32(x: int) -> int:
 
 @dataclass
 class EncoderInternalState:
-    """Encoder_internal_state_t; the pin register/bitmask pairs become the core and pin numbers."""
+    """Encoder_internal_state_t, with the core whose data space the pin registers are in."""
     core: ArduinoCore
-    pin1: int
-    pin2: int
+    pin1_register: int
+    pin2_register: int
+    pin1_bitmask: int
+    pin2_bitmask: int
     state: int = 0
     position: int = 0
+
+
+def direct_pin_read(core: ArduinoCore, base: int, mask: int) -> int:
+    """direct_pin_read.h, AVR: ``(((*(base)) & (mask)) ? 1 : 0)``."""
+    return 1 if core.read8(base) & mask else 0
 
 
 class InterruptArgs:
@@ -75,16 +84,18 @@ class Encoder:
         self.interrupt_args = interrupt_args_for(core)
         core.pin_mode(pin1, INPUT_PULLUP)
         core.pin_mode(pin2, INPUT_PULLUP)
-        self.encoder = EncoderInternalState(core, pin1, pin2)
+        self.encoder = EncoderInternalState(
+            core, pin1_register=core.port_input_register(pin1), pin2_register=core.port_input_register(pin2),
+            pin1_bitmask=core.digital_pin_to_bit_mask(pin1), pin2_bitmask=core.digital_pin_to_bit_mask(pin2))
         self.encoder.position = 0
         # allow time for a passive R-C filter to charge
         # through the pullup resistors, before reading
         # the initial state
         core.delay_microseconds(2000)
         s = 0
-        if core.digital_read(pin1):
+        if direct_pin_read(core, self.encoder.pin1_register, self.encoder.pin1_bitmask):
             s |= 1
-        if core.digital_read(pin2):
+        if direct_pin_read(core, self.encoder.pin2_register, self.encoder.pin2_bitmask):
             s |= 2
         self.encoder.state = s
         self.interrupts_in_use = self.attach_interrupt(pin1, self.encoder)
@@ -143,8 +154,8 @@ class Encoder:
 
     @staticmethod
     def update(arg: EncoderInternalState) -> None:
-        p1val = arg.core.digital_read(arg.pin1)
-        p2val = arg.core.digital_read(arg.pin2)
+        p1val = direct_pin_read(arg.core, arg.pin1_register, arg.pin1_bitmask)
+        p2val = direct_pin_read(arg.core, arg.pin2_register, arg.pin2_bitmask)
         state = arg.state & 3
         if p1val:
             state |= 4
