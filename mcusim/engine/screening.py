@@ -52,7 +52,6 @@ class PeriodPlan:
         for pc in pieces:
             Q.append(periodmap.then(Q[-1], pc[1]))
         self.Q = Q
-        self.QT = [q.T for q in Q]             # the transposes (views) the screening multiplies by
         self.Ql = [q.tolist() for q in Q]      # the same, as lists (one state at a time)
         self.T = Q[-1]
         self.table = PowerTable(self.T, n)
@@ -82,7 +81,7 @@ class PeriodPlan:
             self._Wt, self._w, self._tau = Wt, w[:, None, :], tau[:, None, None]
             self._At, self._u = At, u[:, None, :]
         # Q[1..npc-1] side by side: one product gives every inner piece start
-        self._QTcat = np.concatenate(self.QT[1:npc], axis=1) if npc > 1 else None
+        self._QTcat = np.concatenate([q.T for q in Q[1:npc]], axis=1) if npc > 1 else None
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
 
     def first_flag(self, x0, n: int, extra_guards):
@@ -121,8 +120,8 @@ class PeriodPlan:
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
-        multiplies by: G (pieces, 4, guards) with columns (ci, cw, cθ, c0), and the parts of |G|
-        the bounds use. Pieces with fewer guards are padded with h ≡ 1, which never flags."""
+        multiplies by: G as (pieces, 4, guards), one column (ci, cw, cθ, c0) per guard, and the
+        parts of |G| the bounds use. Pieces with fewer guards are padded with h ≡ 1, which never flags."""
         rows = [[g[:4] for g in pc[4] + extra_guards] for pc in self.pieces]
         m = max(1, max(len(r) for r in rows))
         G = np.array([r + [(0.0, 0.0, 0.0, 1.0)] * (m - len(r)) for r in rows], dtype=float)
@@ -168,7 +167,7 @@ class ChunkTraj:
             return self.x0 if q == 0 else tuple(self._row(q)[:3])
         return periodmap.apply_rows(self.plan.Ql[p], self.x0 if q == 0 else self._row(q)[:3])
 
-    def first_fire(self, g, after: int, inv: float):
+    def first_fire(self, g, after: int):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
         or None. θ is monotone in a chunk (ω keeps its sign: its guard is screened), so the period
         is found from the period-start values, and the tick inside it exactly as the edge-by-edge

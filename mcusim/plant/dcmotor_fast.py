@@ -104,7 +104,7 @@ class PeriodicDrive:
         after = self.kernel.now - self._t0
         if tr.kind == "chunk":
             end = tr.periods * tr.plan.P
-            search = lambda g: tr.first_fire(g, after, inv)
+            search = lambda g: tr.first_fire(g, after)
         else:           # a closed-form segment, up to its own next event
             end = self._seg_end
             if end <= after:
