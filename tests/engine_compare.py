@@ -67,6 +67,29 @@ def _close(a: float, b: float, scale: float) -> bool:
     return abs(a - b) <= REL * max(abs(a), abs(b), scale)
 
 
+def real_mismatch(a, b):
+    """Where two VCD real signals (lists of (time, value) changes) differ by more than REL of the
+    signal's full scale, or None. A VCD holds a real variable's *changes* only: where the engines'
+    values differ in the last bits, one engine records a sample that the other, seeing a bit-equal
+    value, leaves out (a current at its steady state). So the two step functions are compared at
+    every time either engine recorded."""
+    scale = max((abs(v) for _, v in a + b), default=0.0)
+    ia = ib = 0
+    va = vb = None
+    for t in sorted({t for t, _ in a} | {t for t, _ in b}):
+        while ia < len(a) and a[ia][0] <= t:
+            va = a[ia][1]
+            ia += 1
+        while ib < len(b) and b[ib][0] <= t:
+            vb = b[ib][1]
+            ib += 1
+        if va is None or vb is None:
+            return f"at {t} ps: only {'fast' if va is None else 'reference'} has a value"
+        if not _close(va, vb, scale):
+            return f"at {t} ps: reference {va!r}, fast {vb!r}"
+    return None
+
+
 def _pose_scale(d: dict) -> float:
     """One scale for a pose's x, y and yaw: yaw comes from differences of wheel travels, so its
     rounding is relative to the distance travelled, not to yaw itself (a straight run's yaw is a
@@ -151,15 +174,9 @@ def differences(tmp_path: Path, argv: list[str]) -> list[str]:
             problems.append(f"VCD {name}: only in one engine's trace")
             continue
         if types[name] == "real":
-            scale = max((abs(v) for _, v in a), default=0.0)     # relative to the signal's full scale
-            ta, tb = [t for t, _ in a], [t for t, _ in b]
-            if ta != tb:
-                problems.append(f"VCD {name}: sampled at different times")
-                continue
-            for (t, x), (_, y) in zip(a, b):
-                if not _close(x, y, scale):
-                    problems.append(f"VCD {name} at {t} ps: reference {x!r}, fast {y!r}")
-                    break
+            bad = real_mismatch(a, b)
+            if bad:
+                problems.append(f"VCD {name} {bad}")
         elif a != b:
             first = next((i for i, (p, q) in enumerate(zip(a, b)) if p != q), min(len(a), len(b)))
             pa = a[first] if first < len(a) else "end"

@@ -107,6 +107,9 @@ def test_engines_agree_through_bts7960_current_limit_trips(tmp_path):
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+# found by a seed sweep: a shaft that never breaks away holds its current at the steady state, where
+# the engines' values differ in the last bit, so their VCDs record changes at different samples
+@example(v=0.0625, load=0.0, i_cl=60.0, j_scale=0.5, ms=105)
 @given(v=st.floats(-80.0, 80.0), load=st.floats(-25.0, 25.0), i_cl=st.sampled_from([60.0, 15.0, 9.0]),
        j_scale=st.sampled_from([0.5, 1.0, 4.0]), ms=st.integers(60, 200))
 def test_engines_agree_on_generated_promini_runs(tmp_path_factory, v, load, i_cl, j_scale, ms):

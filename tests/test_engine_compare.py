@@ -1,0 +1,33 @@
+"""The engine comparison reads a VCD real variable as the step function it encodes.
+
+A VCD holds only the changes of a real variable. Two engines whose values agree to the last bit
+but one (a motor current resting at its steady state) record changes at different samples; the
+signals are still equal within the tolerance, and must compare equal. A real difference must not.
+"""
+
+from engine_compare import REL, real_mismatch
+from hypothesis import given
+from hypothesis import strategies as st
+
+
+def test_last_bit_wiggles_recorded_at_different_samples_compare_equal():
+    # the CI-sweep case: the reference's last changes at 104.9 and 105.0 ms, the fast engine's at
+    # 104.85 and 104.95 ms, all within one ulp of 0.16606250969326630
+    ref = [(0, 0.0), (104750, 0.1660625096932663), (104850, 0.1660625096932662), (104900, 0.1660625096932663), (105000, 0.1660625096932664)]
+    fast = [(0, 0.0), (104750, 0.1660625096932663), (104800, 0.1660625096932663), (104850, 0.1660625096932664), (104950, 0.1660625096932665)]
+    assert real_mismatch(ref, fast) is None
+
+
+@given(st.lists(st.floats(-10.0, 10.0), min_size=2, max_size=30), st.integers(0, 29), st.floats(1e-6, 1.0))
+def test_a_difference_above_the_tolerance_at_any_sample_is_reported(values, k, rel):
+    k %= len(values)
+    a = [(t * 50, v) for t, v in enumerate(values)]
+    full = max(abs(v) for v in values) or 1.0
+    b = list(a)
+    b[k] = (b[k][0], b[k][1] + 10 * REL * full + rel * full)
+    assert real_mismatch(a, b) is not None
+    assert real_mismatch(a, a) is None
+
+
+def test_a_sample_only_one_engine_has_is_reported():
+    assert real_mismatch([(0, 1.0)], [(50, 1.0)]) is not None
