@@ -67,6 +67,19 @@ class Signal:
         self._waiters.append(fn)
 
 
+class ClosedForm:
+    """A handler's effect as a pure function of pin levels, for the fast engine's served edges
+    (:mod:`mcusim.engine.served`): ``step(*levels)``, given the levels of ``nets`` at the handler's
+    entry, does what the handler does. ``valid()`` says whether it still stands for the handler
+    bound to the vector, and whether skipping the register reads the handler makes is unobservable
+    (no register log watches them)."""
+
+    __slots__ = ("nets", "step", "valid")
+
+    def __init__(self, nets, step, valid):
+        self.nets, self.step, self.valid = tuple(nets), step, valid
+
+
 class Context:
     """Something that occupies the CPU: a task or an exception handler."""
 
@@ -121,11 +134,41 @@ class Cpu:
         self.isr_count: dict[int, int] = {}
         self.busy_ticks = 0
         self._inline_depth = 0
+        self.closed_forms: dict[int, ClosedForm] = {}
+        self.served_isrs = 0   # fast engine: handler runs applied in closed form (engine.served)
 
     # --- firmware-facing ------------------------------------------------------------------
     def vector(self, irqn: int, handler, cost: int = 0) -> None:
         """Bind ``handler()`` to interrupt ``irqn`` with a declared cost in core cycles."""
         self.vectors[irqn] = (handler, cost)
+
+    def closed_form(self, irqn: int, form: ClosedForm | None) -> None:
+        """Declare (or with None withdraw) the closed form of interrupt ``irqn``'s handler."""
+        if form is None:
+            self.closed_forms.pop(irqn, None)
+        else:
+            self.closed_forms[irqn] = form
+
+    def served(self, irqn: int):
+        """(entry ticks, handler ticks, form) when a request of ``irqn`` raised now would be taken at
+        once and be all the CPU does until its handler returns, and the handler has a closed form
+        that stands: no handler running, global interrupts on, nothing pending, interrupt lines
+        untraced, no task running, ready or waiting for an interrupt. Else None."""
+        form = self.closed_forms.get(irqn)
+        if form is None or self.stack or self._in_code:
+            return None
+        quiet = getattr(self.nvic, "quiet", None)
+        if quiet is None or not quiet():
+            return None
+        rtos = self.rtos
+        if rtos is not None and (rtos.current is not None or rtos._wfi_blocked
+                                 or any(t.state == "ready" for t in rtos.tasks)):
+            return None
+        vec = self.vectors.get(irqn)
+        if vec is None or not form.valid():
+            return None
+        period = self.clock.period
+        return self.entry_latency * period, vec[1] * period, form
 
     @staticmethod
     def cycles(n: int) -> _Req:

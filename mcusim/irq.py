@@ -239,6 +239,11 @@ class AvrInterrupts:
                 best = v
         return None if best is None else (best, best)
 
+    def quiet(self) -> bool:
+        """Global interrupts on, no request pending or in service, the lines untraced: a request
+        raised now is taken at once and is all that happens (``Cpu.served``)."""
+        return self.i_flag and not self.active and not self.line_listeners and not any(self.lines.values())
+
     @staticmethod
     def context_priority(vector: int) -> int:
         return _THREAD_PRIO  # priority never blocks nesting on AVR: only the I flag does

@@ -117,6 +117,12 @@ class Net(_Carrier):
             self._drivers[driver] = 1 if level else 0
         self._resolve()
 
+    def settle(self, driver: str, level: int) -> None:
+        """Driver ``driver``, the net's only one, drives ``level``; every listener has already had
+        the changes up to it, served in closed form (the fast engine's served edges,
+        :mod:`mcusim.engine.served`), so none is called."""
+        self._drivers[driver] = self._lvl = 1 if level else 0
+
     def set_wave(self, driver: str, wave) -> None:
         """Driver ``driver`` drives a steady waveform from now on (until its next set/set_wave)."""
         self._drivers[driver] = wave

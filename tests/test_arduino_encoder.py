@@ -26,6 +26,7 @@ class FakeCore:
         self.pending = []
         self.delays = []
         self.log = []
+        self.forms = {}             # interrupt number -> (pins, step) declared closed forms
 
     # ArduinoCore
     def digital_read(self, pin):
@@ -62,6 +63,9 @@ class FakeCore:
 
     def read8(self, addr):
         return self.digital_read(addr - 1000)
+
+    def attach_closed_form(self, n, pins, step):
+        self.forms[n] = (tuple(pins), step)
 
     # test side
     def set_pin(self, pin, level):
@@ -109,6 +113,24 @@ def test_update_table_index_is_new2_new1_old2_old1():
         Encoder.update(st_)
         assert st_.position == delta, index
         assert st_.state == index >> 2
+
+
+@given(st.integers(min_value=0, max_value=15), st.integers(min_value=-(2**31), max_value=2**31 - 1))
+def test_declared_closed_form_of_each_isr_does_what_update_does(index, position):
+    """The fast engine applies the declared closed form instead of running isr0/isr1: for every
+    old state and pair of levels read, it must leave state and position as update() does."""
+    p1, p2 = (index >> 2) & 1, (index >> 3) & 1
+    core, enc = make()
+    assert set(core.forms) == {0, 1}
+    for n in (0, 1):
+        pins, step = core.forms[n]
+        assert pins == (2, 3)
+        ref = EncoderInternalState(FakeCore({2: p1, 3: p2}), 1002, 1003, 1, 1, state=index & 3,
+                                   position=position)
+        Encoder.update(ref)
+        enc.encoder.state, enc.encoder.position = index & 3, position
+        step(p1, p2)
+        assert (enc.encoder.state, enc.encoder.position) == (ref.state, ref.position)
 
 
 def test_pin1_leading_counts_negative_vector_13():

@@ -14,6 +14,10 @@ Function names are the core's in snake_case. Deviations, as the simulation needs
 * ``attach_interrupt`` takes an optional declared cost of the user function in cycles (the
   trampoline in WInterrupts.c is part of the figure; the PJRC Encoder's measured 148 cycles is
   the whole ISR).
+* ``attach_closed_form`` (no C counterpart) declares that the function attached to an external
+  interrupt is a pure function of some pin levels, so the fast engine may apply it in closed form
+  to edges nothing else interacts with (:mod:`mcusim.engine.served`). ``detach_interrupt``, and
+  ``attach_interrupt`` of another function, withdraw it.
 * Timer2 is not modelled, so ``init`` leaves it alone (the core would start it in phase-correct
   PWM mode for pins 3 and 11), and ``analog_write`` refuses pins 3/11 and Timer0's pins 5/6.
 """
@@ -33,7 +37,7 @@ from mcusim.fw.arduino.core_api import (  # noqa: F401
 )
 
 from mcusim.errors import ConfigError
-from mcusim.firmware import Signal
+from mcusim.firmware import ClosedForm, Signal
 
 # data-space addresses (iom328p.h)
 PINB, DDRB, PORTB = 0x23, 0x24, 0x25
@@ -220,6 +224,8 @@ class ArduinoCore:
     def attach_interrupt(self, n: int, fn, mode: int, cycles: int | None = None) -> None:
         if n not in (0, 1):
             return
+        if fn is not self.int_func[n]:
+            self.cpu.closed_form((INT0_vect, INT1_vect)[n], None)
         self.int_func[n] = fn
         if cycles is not None:
             self.isr_cycles[n] = cycles
@@ -233,6 +239,31 @@ class ArduinoCore:
         if self.int_func[n] is not None:
             self.attach_interrupt(n, self.int_func[n], (self._r(EICRA) >> 2 * n) & 3)
 
+    def attach_closed_form(self, n: int, pins, step) -> None:
+        """Simulation: the function attached to external interrupt ``n`` does exactly
+        ``step(*levels)``, ``levels`` being the levels (0/1) its pins ``pins`` have when it runs,
+        and reads no other register. The fast engine then serves edges that nothing else
+        interacts with in closed form; while a register log watches the pins' PINx reads it runs
+        the function itself."""
+        fn = self.int_func[n]
+        if fn is None:
+            raise ConfigError(f"attach_closed_form({n}): nothing is attached to interrupt {n}")
+        ports = []
+        for pin in pins:
+            address = self._port(pin)[0][0]
+            ports.append(self.bus.peripheral_at(address)[0])
+        nets = [self.pin_net(pin) for pin in pins]
+        valid = lambda: self.int_func[n] is fn and all(p.access_log is None for p in ports)
+        self.cpu.closed_form((INT0_vect, INT1_vect)[n], ClosedForm(nets, step, valid))
+
+    def pin_net(self, pin: int):
+        """The net of digital pin ``pin`` (simulation)."""
+        port, bit = _PIN.get(pin, (None, None))
+        if port is None:
+            self._port(pin)        # the error
+        return self.mcu.pin(f"P{port}{bit}")
+
     def detach_interrupt(self, n: int) -> None:
+        self.cpu.closed_form((INT0_vect, INT1_vect)[n], None)
         self._w(EIMSK, self._r(EIMSK) & ~(1 << n))
         self.int_func[n] = None

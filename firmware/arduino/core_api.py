@@ -49,6 +49,11 @@ class ArduinoCore(Protocol):
     def read8(self, addr: int) -> int:
         """One byte load from data space (``*(volatile uint8_t *)addr``)."""
 
+    def attach_closed_form(self, n: int, pins, step: Callable[..., None]) -> None:
+        """Simulation, no C counterpart: the function attached to interrupt n does exactly
+        ``step(*levels)`` of the levels of ``pins`` when it runs (the fast engine may apply it in
+        closed form)."""
+
 
 @runtime_checkable
 class DataBus(Protocol):

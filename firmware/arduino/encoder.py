@@ -4,6 +4,10 @@
 injected Arduino core (see ``core_api``), as the C does: not ``digitalRead``, which would also turn
 off a PWM output on the pin. ``attachInterrupt``/``noInterrupts``/``interrupts``/
 ``delayMicroseconds`` go through the core too.
+The port adds one thing the C has not: ``update_from_levels``, the state table of ``update`` as a
+function of the two pin levels it reads, declared to the core (``attach_closed_form``) so that the
+fast engine can serve encoder edges nothing else interacts with without running ``update`` edge by
+edge (``update`` itself stays as the C has it, and a test holds the two equal).
 The build is the default one: ``ENCODER_USE_INTERRUPTS`` through the core's ``attachInterrupt``
 trampoline, not ``ENCODER_OPTIMIZE_INTERRUPTS``.
 """
@@ -26,6 +30,10 @@ ISR_CYCLES = 148
 
 def _int32(x: int) -> int:
     return ((x + 0x80000000) & 0xFFFFFFFF) - 0x80000000
+
+
+# the position change of update()'s table, indexed by (new pin2, new pin1, old pin2, old pin1)
+_STEP = (0, 1, -1, 2, -1, 0, -2, 1, 1, -2, 0, -1, 2, -1, 1, 0)
 
 
 @dataclass
@@ -81,6 +89,7 @@ class Encoder:
 
     def __init__(self, core: ArduinoCore, pin1: int, pin2: int):
         self.core = core
+        self._pin1, self._pin2 = pin1, pin2      # simulation: for attach_closed_form
         self.interrupt_args = interrupt_args_for(core)
         core.pin_mode(pin1, INPUT_PULLUP)
         core.pin_mode(pin2, INPUT_PULLUP)
@@ -171,6 +180,15 @@ class Encoder:
         elif state in (6, 9):
             arg.position = _int32(arg.position - 2)
 
+    @staticmethod
+    def update_from_levels(arg: EncoderInternalState, p1val: int, p2val: int) -> None:
+        """Simulation: what ``update(arg)`` does when it reads ``p1val`` and ``p2val``."""
+        state = (arg.state & 3) | (4 if p1val else 0) | (8 if p2val else 0)
+        arg.state = state >> 2
+        d = _STEP[state]
+        if d:
+            arg.position = _int32(arg.position + d)
+
     def attach_interrupt(self, pin: int, state: EncoderInternalState) -> int:
         # The C switches on CORE_INT0_PIN/CORE_INT1_PIN (2, 3 on the 328P); asking the core's
         # digitalPinToInterrupt gives the same mapping without hard-coding the variant.
@@ -179,4 +197,7 @@ class Encoder:
             return 0
         self.interrupt_args.args[n] = state
         self.core.attach_interrupt(n, self.interrupt_args.isr[n], CHANGE)
+        # simulation: isr<n> is update(state), a function of the levels of this encoder's pins
+        pins = (self._pin1, self._pin2)
+        self.core.attach_closed_form(n, pins, lambda p1, p2: Encoder.update_from_levels(state, p1, p2))
         return 1

@@ -96,39 +96,53 @@ class PeriodicDrive:
         if n < tr.periods * P:
             self._chunk_n = max(min(2 * (n // P + 1), CHUNK_MAX), self._chunk_n // 2, CHUNK_LO)
 
+    def _passive_search(self, after: int):
+        """(search, end): ``search(g)`` is the first tick offset in (``after``, ``end``] at which the
+        θ-only guard ``g`` fires on the current trajectory, or None; ``end`` is its own last tick."""
+        tr = self._traj
+        if tr.kind == "chunk":
+            return (lambda g: tr.first_fire(g, after)), tr.periods * tr.plan.P
+        # a closed-form segment, up to its own next event
+        end = self._seg_end
+        if end <= after:
+            return (lambda g: None), end
+        inv = self._inv_hz
+        xa, xe = self._at(tr, after), tr.eval(end * inv)
+        hval = pwl.hval
+        # θ is monotone up to the segment's own next event (a speed reversal is one of its guards):
+        # an encoder threshold fires once, found by a bracketing search
+        return (lambda g: pwl.first_fire_monotone(
+            lambda k: hval(g, tr.eval(k * inv)), after, end, hval(g, xa), hval(g, xe), g[4])), end
+
+    def _first_passive(self, guards, after: int):
+        """(tick offset, the guards firing there) of the first of ``guards`` (passive, θ-only) to
+        fire after offset ``after``, or (None, [])."""
+        search, _ = self._passive_search(after)
+        best, firing = None, []
+        s = self._s
+        for g in guards:
+            if g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
+                continue
+            n = search(g)
+            if n is None or (best is not None and n > best):
+                continue
+            if best is None or n < best:
+                best, firing = n, [g]
+            else:
+                firing.append(g)
+        return best, firing
+
     def _find_passive(self):
         """Schedule the next firing of a passive provider's guards (an encoder threshold: its
         handler changes no input of the motor) inside the current chunk, which stays as it is."""
         tr = self._traj
-        inv = self._inv_hz
         after = self.kernel.now - self._t0
-        if tr.kind == "chunk":
-            end = tr.periods * tr.plan.P
-            search = lambda g: tr.first_fire(g, after)
-        else:           # a closed-form segment, up to its own next event
-            end = self._seg_end
-            if end <= after:
-                return
-            xa, xe = self._at(tr, after), tr.eval(end * inv)
-            hval = pwl.hval
-            # θ is monotone up to the segment's own next event (a speed reversal is one of its
-            # guards): an encoder threshold fires once, found by a bracketing search
-            search = lambda g: pwl.first_fire_monotone(
-                lambda k: hval(g, tr.eval(k * inv)), after, end, hval(g, xa), hval(g, xe), g[4])
-        best, firing = None, []
-        s = self._s
-        for prov in self._providers:
-            if getattr(prov, "passive_guards", False):
-                for g in prov.plant_guards():
-                    if g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
-                        continue
-                    n = search(g)
-                    if n is None or (best is not None and n > best):
-                        continue
-                    if best is None or n < best:
-                        best, firing = n, [g]
-                    else:
-                        firing.append(g)
+        end = tr.periods * tr.plan.P if tr.kind == "chunk" else self._seg_end
+        if tr.kind != "chunk" and end <= after:
+            return
+        guards = [g for prov in self._providers if getattr(prov, "passive_guards", False)
+                  for g in prov.plant_guards()]
+        best, firing = self._first_passive(guards, after)
         if best is None:
             return
         if best == end:      # at the segment's own event: that event runs it first
@@ -140,14 +154,29 @@ class PeriodicDrive:
             self._passive = firing
             self._ev_passive = self.kernel.at(self._t0 + best, self._on_passive, prio=PRIO_PLANT)
 
+    def _locate_passive(self, guards, after_tick: int):
+        """For a provider serving a run of its crossings (:meth:`QuadratureEncoder.serve_crossings`):
+        the absolute tick at which the first of its ``guards`` fires after ``after_tick`` on the
+        current trajectory, and those guards; (None, []) if none does before its end."""
+        best, firing = self._first_passive(guards, after_tick - self._t0)
+        return (None, []) if best is None else (self._t0 + best, firing)
+
     def _on_passive(self):
         self._ev_passive = None
         tr = self._traj
         # the edge-by-edge engine starts a segment here and samples |i| at its start: an interior
         # point of this segment, never above the maximum the segment's own tracking finds (its
         # boundaries and the current's stationary points), so nothing is sampled here
-        for g in self._passive:
-            g[5].on_guard(g[6])
+        firing = self._passive
+        prov = firing[0][5] if len(firing) == 1 else None
+        if prov is not None and hasattr(prov, "serve_crossings") and sum(
+                1 for p in self._providers if getattr(p, "passive_guards", False)) == 1:
+            # the only passive provider: a run of its crossings may be served at once (it gives
+            # up, edge by edge, where anything could come in between)
+            prov.serve_crossings(firing[0][6], self._locate_passive)
+        else:
+            for g in firing:
+                g[5].on_guard(g[6])
         if self._traj is tr and self._ev_passive is None:
             self._find_passive()
 

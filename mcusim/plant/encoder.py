@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+from ..engine import served
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from ..signals import Net
@@ -73,7 +74,10 @@ class QuadratureEncoder:
         self.b.set(self.name, qb)
 
     def plant_guards(self):
-        k, st = self.position, self.step
+        return self._guards_at(self.position)
+
+    def _guards_at(self, k):
+        st = self.step
         return ((0.0, 0.0, -1.0, (k + 1) * st, False, self, 1),   # θ ≥ (k+1)·step
                 (0.0, 0.0, 1.0, -(k * st), True, self, -1))       # θ < k·step
 
@@ -99,6 +103,59 @@ class QuadratureEncoder:
                 continue
             self.edges += 1
             self._out()
+
+    def serve_crossings(self, direction, locate) -> None:
+        """Fast engine: :meth:`on_guard` for the crossing due now and the ones after it, as long as
+        each one's edge is *served* (:mod:`mcusim.engine.served`): its interrupt handler applied
+        in closed form and its CPU time charged at its ticks, with no event of its own.
+
+        ``locate(guards, after)`` is the motor's search: (tick, guards firing there) of the first
+        of ``guards`` to fire after tick ``after`` on its trajectory, or (None, []). A crossing
+        whose edge cannot be served runs as :meth:`on_guard` runs it: here, at its own tick, if
+        that is the next thing to happen; else the motor schedules it as usual."""
+        kernel, a, b = self.kernel, self.a, self.b
+        ra = rb = None
+        if not self._drop:
+            ra, rb = served.route(a, kernel), served.route(b, kernel)
+        if ra is None or rb is None:
+            self.on_guard(direction)
+            return
+        st, motor = self.step, self.motor
+        la, lb = a.level, b.level
+        d = direction
+        n_served = 0
+        run_here = True         # the crossing due now runs as on_guard runs it
+        while True:
+            th = motor.angle
+            k = self.position + d
+            if (th >= (k + 1) * st) if d > 0 else (th < k * st):
+                break           # more than one threshold in this tick: on_guard's loop
+            qa, qb = _QUAD[(k - self._slip) & 3]
+            if (qa != la) == (qb != lb):
+                break           # not exactly one output changes (after a glitch)
+            route = ra if qa != la else rb
+            ret = route.returns(kernel.now)
+            if ret is None:
+                break
+            nxt, firing = locate(self._guards_at(k), kernel.now)
+            if nxt is not None and nxt <= ret:
+                break           # the next edge comes before this handler returns: timing interacts
+            self.position = k
+            self.edges += 1
+            la, lb = qa, qb
+            route.serve({a: qa, b: qb})
+            kernel.now = ret
+            n_served += 1
+            if nxt is None or not kernel.would_be_next(nxt, PRIO_PLANT):
+                run_here = False    # the motor schedules the next crossing (if any) as usual
+                break
+            kernel.now = nxt        # the next crossing's event would be the next one: it is here
+            d = firing[0][6]
+        if n_served:
+            a.settle(self.name, la)
+            b.settle(self.name, lb)
+        if run_here:
+            self.on_guard(d)
 
     # ---- fault injection ---------------------------------------------------------------------------
     def glitch(self, channel: str = "A", width: int = 1) -> None:

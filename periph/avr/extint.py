@@ -13,6 +13,22 @@ from __future__ import annotations
 from mcusim.registers import Field, Peripheral, Register
 
 
+class _IntPin:
+    """The listener ExtInt puts on INTn's net (callable per edge; the fast engine asks it what an
+    edge would do, see :mod:`mcusim.engine.served`)."""
+
+    __slots__ = ("ext", "n")
+
+    def __init__(self, ext, n):
+        self.ext, self.n = ext, n
+
+    def __call__(self, net):
+        self.ext._edge(self.n, net.level)
+
+    def served_vector(self):
+        return self.ext.served_vector(self.n)
+
+
 class ExtInt(Peripheral):
     BUS_WIDTH = 1
     REGISTERS = (
@@ -30,8 +46,18 @@ class ExtInt(Peripheral):
         self.vectors = vectors
         self.edges_lost = [0, 0]
         for n, net in enumerate(self.nets):
-            net.listen(lambda net, n=n: self._edge(n, net.level))
+            net.listen(_IntPin(self, n))
             mcu.irq.on_entry[vectors[n]] = lambda n=n: self._clear(n)
+
+    def served_vector(self, n):
+        """(clock, cpu, vector) when an edge on INTn's pin now would do nothing but set INTFn at
+        the next clock edge and request the vector: any-change mode, INTn enabled, INTFn clear
+        (a set flag would make the edge a lost one). Else None."""
+        value = self.value
+        if ((value["EICRA"] >> (2 * n)) & 3 != 1 or not value["EIMSK"] >> n & 1
+                or value["EIFR"] >> n & 1 or self.irq.cpu is None):
+            return None
+        return self.clock, self.irq.cpu, self.vectors[n]
 
     def _sense(self, n):
         return (self.value["EICRA"] >> (2 * n)) & 3
