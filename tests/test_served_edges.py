@@ -1,0 +1,185 @@
+"""Served encoder edges (``mcusim.engine.served``): where nothing interacts, the fast engine applies
+the PJRC Encoder's ISR in closed form instead of running each edge's four events, and must leave
+every state exactly as the edge-by-edge (reference) engine leaves it.
+
+The VCD and register-log equality tests cannot show this: a trace of the encoder pins or a log
+of the PIND reads makes the fast engine run each edge one by one (tests below pin that too).
+Here the runs have no trace, and the whole state is compared at observation points instead:
+every register of every MCU, every pin level, each handler's run count, the CPU's busy time,
+ExtInt's lost-edge counts, the firmware's encoder state, the plant encoder and the motor.
+"""
+
+import math
+
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+from mcusim.scenario import load_scenario
+
+import mcusim
+
+EDGES_PER_OUTPUT_RAD = 2048 * 50 / (2 * math.pi)    # pro-mini: AMT10 (512 PPR ×4) on the motor, 1:50
+
+
+def snapshot(sim) -> dict:
+    out = {}
+    for mname, m in sim.members.items():
+        mcu = m["mcu"]
+        out[f"{mname}: handler runs"] = dict(mcu.cpu.isr_count)
+        out[f"{mname}: CPU busy ticks"] = mcu.cpu.busy_ticks
+        for pname, p in mcu.periph.items():
+            if hasattr(p, "value"):
+                out[f"{mname}: {pname} registers"] = dict(p.value)
+            if hasattr(p, "edges_lost"):
+                out[f"{mname}: {pname} edges lost"] = list(p.edges_lost)
+        out[f"{mname}: pins"] = {n: net.level for n, net in mcu.pins.items()}
+        fw = m.get("firmware")
+        if fw is not None and hasattr(fw, "encoder"):
+            e = fw.encoder.encoder
+            out[f"{mname}: firmware encoder (state, position)"] = (e.state, e.position)
+    for name, part in sim.parts.items():
+        if type(part).__name__ == "QuadratureEncoder":
+            out[f"{name} (position, edges, dropped)"] = (part.position, part.edges, part.dropped)
+        if type(part).__name__ == "DcMotor":
+            out[f"{name} (i, ω, θ)"] = (part.current, part.speed, part.angle)
+    return out
+
+
+def _close(a, b) -> bool:
+    if isinstance(a, float):
+        return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+def served(sim) -> int:
+    return sum(m["mcu"].cpu.served_isrs for m in sim.members.values())
+
+
+def run_both(build, seconds: float, step: float = 0.004):
+    """Run the reference and the fast engine side by side and compare their states every ``step``
+    seconds; returns the fast simulation. ``build(engine)`` makes one simulation."""
+    ref, fast = build("reference"), build("fast")
+    t = 0.0
+    while t < seconds - 1e-12:
+        dt = min(step, seconds - t)
+        ref.run(seconds=dt)
+        fast.run(seconds=dt)
+        t += dt
+        a, b = snapshot(ref), snapshot(fast)
+        bad = [k for k in a if not _close(a[k], b[k])]
+        assert not bad, (f"at {fast.time_s:.6f} s the engines differ in {bad}: reference "
+                         f"{[a[k] for k in bad][:2]}, fast {[b[k] for k in bad][:2]}")
+    assert ref.now == fast.now
+    return fast
+
+
+def test_the_promini_bench_command_serves_most_edges_and_leaves_every_state_as_edge_by_edge():
+    fast = run_both(lambda e: mcusim.load("pro-mini", overrides={"velocity": 20}, engine=e), 0.25)
+    edges = fast.part("encoder").edges
+    assert edges > 3000
+    assert served(fast) > 0.8 * edges       # the point of it: most edges have no event of their own
+
+
+def test_the_reference_engine_never_serves():
+    sim = mcusim.load("pro-mini", overrides={"velocity": 20}, engine="reference")
+    sim.run(seconds=0.1)
+    assert sim.part("encoder").edges > 1000 and served(sim) == 0
+
+
+@settings(max_examples=6, deadline=None)
+@example(v=20.0, load=0.0, i_cl=60.0, j_scale=1.0, ms=90)
+@example(v=-75.0, load=10.0, i_cl=9.0, j_scale=0.5, ms=120)
+@given(v=st.floats(-80.0, 80.0), load=st.floats(-25.0, 25.0), i_cl=st.sampled_from([60.0, 15.0, 9.0]),
+       j_scale=st.sampled_from([0.5, 1.0, 4.0]), ms=st.integers(40, 140))
+def test_served_edges_leave_every_state_as_edge_by_edge_on_generated_promini_runs(v, load, i_cl, j_scale, ms):
+    """Velocity steps either way from standstill, load torques helping or opposing, current limits
+    down to tripping, light and heavy shafts: edge rates from none to beyond the ISR bound."""
+    sets = {"velocity": v, "motor.load_torque": load, "motor.J": 2e-5 * j_scale, "ibt2.I_CLH": i_cl,
+            "ibt2.I_CLL": 0.7 * i_cl}
+    run_both(lambda e: mcusim.load("pro-mini", overrides=sets, engine=e), ms / 1000)
+
+
+def _turn_scenario(tmp_path, rate, sign, over_ms, back):
+    angle = sign * rate / EDGES_PER_OUTPUT_RAD * over_ms / 1000
+    body = (f'[scenario]\nboard = "pro-mini"\nduration = "{2 * over_ms + 10}ms"\n\n'
+            f'[[at]]\ntime = "2ms"\nturn = {{ motor = "motor", angle = {angle!r}, over = "{over_ms}ms" }}\n')
+    if back:
+        body += (f'\n[[at]]\ntime = "{over_ms + 4}ms"\n'
+                 f'turn = {{ motor = "motor", angle = {-angle / 3!r}, over = "{over_ms}ms" }}\n')
+    path = tmp_path / "turn.toml"
+    path.write_text(body)
+    return path
+
+
+def _build(path, engine):
+    sc = load_scenario(path)        # a scenario applies to one simulation
+    sim = sc.build(None, None, True, engine)
+    sc.apply(sim)
+    return sim, sc.duration
+
+
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@example(rate=105_000, sign=1, over_ms=6, back=True)
+@given(rate=st.sampled_from([30_000, 60_000, 95_000, 105_000, 115_000, 160_000]), sign=st.sampled_from([1, -1]),
+       over_ms=st.integers(3, 10), back=st.booleans())
+def test_edges_near_and_above_the_isr_bound_are_lost_alike_when_the_others_are_served(tmp_path, rate, sign,
+                                                                                     over_ms, back):
+    """A hand turns the shaft at edge rates around the PJRC Encoder's ISR bound (~105 k edges/s:
+    4 + 148 cycles at 16 MHz). An edge closer to the next than a handler's run is never served, so
+    the flags that absorb edges above the bound absorb the same ones in both engines."""
+    path = _turn_scenario(tmp_path, rate, sign, over_ms, back)
+    run_both(lambda engine: _build(path, engine)[0], _build(path, "fast")[1], step=0.002)
+
+
+def test_a_turn_below_the_isr_bound_is_served_and_one_above_it_is_not(tmp_path):
+    """At 30 k edges/s (33 µs apart, a handler takes 9.5 µs) edges are served; at 160 k edges/s
+    (6 µs apart) none can be: each comes before the previous handler returns."""
+    counts = {}
+    for rate in (30_000, 160_000):
+        sim, _ = _build(_turn_scenario(tmp_path, rate, 1, 8, False), "fast")
+        enc = sim.part("encoder")
+        sim.run(seconds=0.002)
+        e0, s0 = enc.edges, served(sim)
+        sim.run(seconds=0.008)
+        counts[rate] = (enc.edges - e0, served(sim) - s0)
+    assert counts[30_000][1] > 0.8 * counts[30_000][0]
+    assert counts[160_000][0] > 1000 and counts[160_000][1] == 0
+
+
+@settings(max_examples=5, deadline=None)
+@given(v=st.sampled_from([15.0, -25.0, 40.0]), t_fault=st.integers(20, 60), kind=st.sampled_from(["glitch", "drop"]),
+       n=st.integers(1, 5), channel=st.sampled_from(["A", "B"]))
+def test_served_edges_agree_through_encoder_glitches_and_dropped_edges(v, t_fault, kind, n, channel):
+    """A noise spike on one output (then an edge where both outputs change, never served) and
+    dropped crossings (the outputs slip behind the position)."""
+    def build(engine):
+        sim = mcusim.load("pro-mini", overrides={"velocity": v}, engine=engine)
+        enc = sim.part("encoder")
+        fault = (lambda: enc.glitch(channel, 16 * n)) if kind == "glitch" else (lambda: enc.drop_edges(n))
+        sim.kernel.at(sim.timebase.base_hz * t_fault // 1000, fault)
+        return sim
+    run_both(build, 0.1, step=0.002)
+
+
+def test_a_register_log_of_the_pin_reads_makes_edges_run_one_by_one(tmp_path):
+    """Serving skips the handler's PIND reads: while a register log watches PORTD each edge runs
+    its handler; a log of other peripherals does not stop serving."""
+    watched = mcusim.load("pro-mini", overrides={"velocity": 20})
+    watched.trace_registers(tmp_path / "d.jsonl", filter="PORTD")
+    other = mcusim.load("pro-mini", overrides={"velocity": 20})
+    other.trace_registers(tmp_path / "t.jsonl", filter="TIMER1")
+    for sim in (watched, other):
+        sim.run(seconds=0.1)
+        sim.close()
+    assert watched.part("encoder").edges > 1000 and served(watched) == 0
+    assert served(other) > 0.5 * other.part("encoder").edges
+
+
+def test_a_trace_of_the_encoder_pins_makes_edges_run_one_by_one(tmp_path):
+    """A VCD trace listens to the encoder pins (it needs every edge at its tick): nothing is served."""
+    sim = mcusim.load("pro-mini", overrides={"velocity": 20})
+    sim.trace_vcd(tmp_path / "t.vcd")
+    sim.run(seconds=0.1)
+    sim.close()
+    assert sim.part("encoder").edges > 1000 and served(sim) == 0
