@@ -48,8 +48,9 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
         finally:
             sim.close()
         wall = time.perf_counter() - t0
-        runs.append((wall, sim.kernel.events, sim.time_s, sim.summary()["engine"]["fast_fraction"],
-                     getattr(sim.mcu.cpu, "instructions", None)))
+        eng = sim.summary()["engine"]
+        runs.append((wall, sim.kernel.events, sim.time_s, eng["fast_fraction"],
+                     getattr(sim.mcu.cpu, "instructions", None), eng["served_isrs"]))
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
@@ -57,7 +58,7 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
                                                   for k, v in scenario.items()),
             "simulated_s": sim_s, "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
-            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3],
+            "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3], "served_isrs": runs[0][5],
             **({"instructions": runs[0][4], "instructions_per_wall_s": runs[0][4] / wall}
                if runs[0][4] is not None else {})}
 
