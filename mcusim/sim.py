@@ -217,7 +217,7 @@ class Simulation:
         cpus = [getattr(m["mcu"], "cpu", None) for m in self.members.values()]
         out["engine"] = {"name": self.kernel.engine,
                          "fast_fraction": (sum(m.fast_ticks for m in motors) / ticks) if ticks else 0.0,
-                         "served_isrs": sum(c.served_isrs for c in cpus if c is not None)}
+                         "served_isrs": sum(getattr(c, "served_isrs", 0) for c in cpus)}
         warned = [w for p in self.peripherals() for w in getattr(p, "warnings", ())]
         if warned:                 # specification limits the firmware exceeded (not errors unless strict)
             out["warnings"] = warned
