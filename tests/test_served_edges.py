@@ -13,9 +13,9 @@ import math
 
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
-from mcusim.scenario import load_scenario
 
 import mcusim
+from mcusim.scenario import load_scenario
 
 EDGES_PER_OUTPUT_RAD = 2048 * 50 / (2 * math.pi)    # pro-mini: AMT10 (512 PPR ×4) on the motor, 1:50
 

@@ -58,7 +58,7 @@ class Route:
         cpu.isr_count[v] = cpu.isr_count.get(v, 0) + 1
         cpu.busy_ticks += self.ticks        # entry latency + handler cycles, as _enter charges
         cpu.served_isrs += 1
-        self.form.step(*[levels[n] if n in levels else n.level for n in self.form.nets])
+        self.form.step(*[levels.get(n, n.level) for n in self.form.nets])
 
 
 def route(net, kernel):
