@@ -70,14 +70,15 @@ class Signal:
 class ClosedForm:
     """A handler's effect as a pure function of pin levels, for the fast engine's served edges
     (:mod:`mcusim.engine.served`): ``step(*levels)``, given the levels of ``nets`` at the handler's
-    entry, does what the handler does. ``valid()`` says whether it still stands for the handler
-    bound to the vector, and whether skipping the register reads the handler makes is unobservable
-    (no register log watches them)."""
+    entry, does what ``handler`` does, and nothing else: it reads no time, fires no Signal and
+    schedules nothing. It applies only while ``handler`` is the one bound to the vector and
+    ``valid()`` holds: whatever the declarer needs, e.g. that the handler still calls the same
+    function and that no register log watches the reads the step skips."""
 
-    __slots__ = ("nets", "step", "valid")
+    __slots__ = ("handler", "nets", "step", "valid")
 
-    def __init__(self, nets, step, valid):
-        self.nets, self.step, self.valid = tuple(nets), step, valid
+    def __init__(self, handler, nets, step, valid):
+        self.handler, self.nets, self.step, self.valid = handler, tuple(nets), step, valid
 
 
 class Context:
@@ -165,7 +166,7 @@ class Cpu:
                                  or any(t.state == "ready" for t in rtos.tasks)):
             return None
         vec = self.vectors.get(irqn)
-        if vec is None or not form.valid():
+        if vec is None or vec[0] is not form.handler or not form.valid():
             return None
         period = self.clock.period
         return self.entry_latency * period, vec[1] * period, form

@@ -95,3 +95,16 @@ def test_pin_mode_output_and_digital_read():
     assert sim.pin("PB5").level == 1 and core.digital_read(13) == 1
     sim.pin("PD4").drive(1)
     assert core.digital_read(4) == 1
+
+
+def test_detach_interrupt_of_a_pin_without_one_does_nothing():
+    """WInterrupts.c: detachInterrupt(digitalPinToInterrupt(pin)) with NOT_AN_INTERRUPT (-1, 255 as
+    its uint8_t) fails ``interruptNum < EXTERNAL_NUM_INTERRUPTS`` and does nothing."""
+    sim, core = board()
+    core.init()
+    core.attach_interrupt(0, lambda: None, 1)
+    core.attach_interrupt(1, lambda: None, 1)
+    eimsk = core.read8(0x3D)
+    core.detach_interrupt(core.digital_pin_to_interrupt(7))
+    assert core.read8(0x3D) == eimsk == 0b11
+    assert all(f is not None for f in core.int_func)

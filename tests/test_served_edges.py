@@ -183,3 +183,40 @@ def test_a_trace_of_the_encoder_pins_makes_edges_run_one_by_one(tmp_path):
     sim.run(seconds=0.1)
     sim.close()
     assert sim.part("encoder").edges > 1000 and served(sim) == 0
+
+
+def test_a_handler_bound_over_the_encoder_isr_is_run_not_the_closed_form():
+    """Firmware that binds its own handler to INT0/INT1 (an ISR(INT0_vect) of its own) takes the
+    vector from the PJRC Encoder: from then on each edge runs that handler, in both engines."""
+    def build(engine):
+        sim = mcusim.load("pro-mini", overrides={"velocity": 20}, engine=engine)
+        cpu = sim.mcu.cpu
+        sim.hits = []
+
+        def rebind():
+            for vector in (1, 2):
+                cpu.vector(vector, lambda: sim.hits.append(sim.now), cost=148)
+        sim.kernel.at(sim.timebase.base_hz // 50, rebind)      # at 20 ms
+        return sim
+    fast = run_both(build, 0.05, step=0.005)
+    before = served(fast)
+    fast.run(seconds=0.02)
+    assert before > 0 and served(fast) == before and len(fast.hits) > 100
+
+
+def test_detaching_and_attaching_the_encoder_isr_again_serves_again():
+    """detachInterrupt stops the edges' handler; attaching the same function again restores the
+    closed form (it stands for that function), and both engines agree throughout."""
+    def build(engine):
+        sim = mcusim.load("pro-mini", overrides={"velocity": 20}, engine=engine)
+        core = sim.firmware.core
+        fn = core.int_func[0]
+        hz = sim.timebase.base_hz
+        sim.kernel.at(hz * 20 // 1000, core.detach_interrupt, 0)
+        sim.kernel.at(hz * 30 // 1000, lambda: core.attach_interrupt(0, fn, 1))
+        return sim
+    fast = run_both(build, 0.06, step=0.002)
+    assert fast.mcu.cpu.isr_count[1] < fast.mcu.cpu.isr_count[2]     # INT0 was off for 10 ms
+    before = served(fast)
+    fast.run(seconds=0.02)
+    assert served(fast) > before + 100

@@ -16,8 +16,8 @@ Function names are the core's in snake_case. Deviations, as the simulation needs
   the whole ISR).
 * ``attach_closed_form`` (no C counterpart) declares that the function attached to an external
   interrupt is a pure function of some pin levels, so the fast engine may apply it in closed form
-  to edges nothing else interacts with (:mod:`mcusim.engine.served`). ``detach_interrupt``, and
-  ``attach_interrupt`` of another function, withdraw it.
+  to edges nothing else interacts with (:mod:`mcusim.engine.served`). It stands while that
+  function is the one attached and the vector runs the core's handler.
 * Timer2 is not modelled, so ``init`` leaves it alone (the core would start it in phase-correct
   PWM mode for pins 3 and 11), and ``analog_write`` refuses pins 3/11 and Timer0's pins 5/6.
 """
@@ -73,6 +73,9 @@ class ArduinoCore:
         self.timer0_fract = 0
         self.millis_changed = Signal()
         self.int_func = [None, None]
+        # WInterrupts.c's ISR(INT0_vect)/ISR(INT1_vect): call the attached function (one object
+        # each, so a closed form can tell that the vector still runs it)
+        self._int_isr = (lambda: self.int_func[0](), lambda: self.int_func[1]())
         self.analog_reference = 1  # DEFAULT: AVcc
         self.debt_cycles = 0
         self.isr_cycles = {0: INT_TRAMPOLINE_CYCLES, 1: INT_TRAMPOLINE_CYCLES}
@@ -224,12 +227,10 @@ class ArduinoCore:
     def attach_interrupt(self, n: int, fn, mode: int, cycles: int | None = None) -> None:
         if n not in (0, 1):
             return
-        if fn is not self.int_func[n]:
-            self.cpu.closed_form((INT0_vect, INT1_vect)[n], None)
         self.int_func[n] = fn
         if cycles is not None:
             self.isr_cycles[n] = cycles
-        self.cpu.vector((INT0_vect, INT1_vect)[n], lambda: self.int_func[n](), cost=self.isr_cycles[n])
+        self.cpu.vector((INT0_vect, INT1_vect)[n], self._int_isr[n], cost=self.isr_cycles[n])
         self._w(EICRA, (self._r(EICRA) & ~(3 << 2 * n)) | (mode << 2 * n))
         self._w(EIMSK, self._r(EIMSK) | (1 << n))
 
@@ -243,9 +244,9 @@ class ArduinoCore:
         """Simulation: the function attached to external interrupt ``n`` does exactly
         ``step(*levels)``, ``levels`` being the levels (0/1) its pins ``pins`` have when it runs,
         and reads no other register. The fast engine then serves edges that nothing else
-        interacts with in closed form; while a register log watches the pins' PINx reads it runs
-        the function itself."""
-        fn = self.int_func[n]
+        interacts with in closed form; while a register log watches the pins' PINx reads, or once
+        another function is attached (or none), it runs the function itself."""
+        fn = self.int_func[n] if n in (0, 1) else None
         if fn is None:
             raise ConfigError(f"attach_closed_form({n}): nothing is attached to interrupt {n}")
         ports = []
@@ -254,7 +255,7 @@ class ArduinoCore:
             ports.append(self.bus.peripheral_at(address)[0])
         nets = [self.pin_net(pin) for pin in pins]
         valid = lambda: self.int_func[n] is fn and all(p.access_log is None for p in ports)
-        self.cpu.closed_form((INT0_vect, INT1_vect)[n], ClosedForm(nets, step, valid))
+        self.cpu.closed_form((INT0_vect, INT1_vect)[n], ClosedForm(self._int_isr[n], nets, step, valid))
 
     def pin_net(self, pin: int):
         """The net of digital pin ``pin`` (simulation)."""
@@ -264,6 +265,7 @@ class ArduinoCore:
         return self.mcu.pin(f"P{port}{bit}")
 
     def detach_interrupt(self, n: int) -> None:
-        self.cpu.closed_form((INT0_vect, INT1_vect)[n], None)
+        if n not in (0, 1):         # WInterrupts.c: interruptNum < EXTERNAL_NUM_INTERRUPTS, else nothing
+            return
         self._w(EIMSK, self._r(EIMSK) & ~(1 << n))
         self.int_func[n] = None
