@@ -23,7 +23,7 @@ import math
 
 from ..engine import served
 from ..errors import ConfigError
-from ..kernel import PRIO_PLANT
+from ..kernel import PRIO_CPU, PRIO_PLANT
 from ..signals import Net
 
 _QUAD = ((0, 0), (1, 0), (1, 1), (0, 1))
@@ -61,6 +61,7 @@ class QuadratureEncoder:
         self.dropped = 0
         self._drop = 0                     # crossings still to suppress (drop_edges)
         self._slip = 0                     # outputs show the state of position - _slip
+        self._serve_ticks = None           # fast engine: handler ticks of the last served route
         self._out()
         motor.add_guard_provider(self)
 
@@ -115,11 +116,16 @@ class QuadratureEncoder:
         that is the next thing to happen; else the motor schedules it as usual."""
         kernel, a, b = self.kernel, self.a, self.b
         ra = rb = None
-        if not self._drop:
+        # a handler takes at least the ticks it took last time: if even that return would not be
+        # the next thing to happen (the rover's wheels alike: a twin's edge at the same tick), the
+        # routes need not be looked up
+        if not self._drop and (self._serve_ticks is None
+                               or kernel.would_be_next(kernel.now + self._serve_ticks, PRIO_CPU)):
             ra, rb = served.route(a, kernel), served.route(b, kernel)
         if ra is None or rb is None:
             self.on_guard(direction)
             return
+        self._serve_ticks = min(ra.ticks, rb.ticks)
         st, motor = self.step, self.motor
         la, lb = a.level, b.level
         d = direction
