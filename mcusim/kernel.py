@@ -76,6 +76,24 @@ class Kernel:
             return head[0] > time or (head[0] == time and head[1] > prio)
         return True
 
+    def first_queued(self, skip=()):
+        """The (time, priority, sequence, event) entry the run loop would pop first, leaving out
+        cancelled events and the events in ``skip``, or None; the queue is left as it is."""
+        q = self._queue
+        if not q:
+            return None
+        todo = [(q[0], 0)]
+        n = len(q)
+        while todo:
+            entry, i = heapq.heappop(todo)
+            ev = entry[3]
+            if not ev.cancelled and ev not in skip:
+                return entry
+            for c in (2 * i + 1, 2 * i + 2):
+                if c < n:
+                    heapq.heappush(todo, (q[c], c))
+        return None
+
     def peek(self):
         """(time, priority) of the next event the run loop would pop, or None."""
         q = self._queue

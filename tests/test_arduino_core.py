@@ -100,7 +100,7 @@ def test_pin_mode_output_and_digital_read():
 def test_detach_interrupt_of_a_pin_without_one_does_nothing():
     """WInterrupts.c: detachInterrupt(digitalPinToInterrupt(pin)) with NOT_AN_INTERRUPT (-1, 255 as
     its uint8_t) fails ``interruptNum < EXTERNAL_NUM_INTERRUPTS`` and does nothing."""
-    sim, core = board()
+    _sim, core = board()
     core.init()
     core.attach_interrupt(0, lambda: None, 1)
     core.attach_interrupt(1, lambda: None, 1)

@@ -220,3 +220,38 @@ def test_detaching_and_attaching_the_encoder_isr_again_serves_again():
     before = served(fast)
     fast.run(seconds=0.02)
     assert served(fast) > before + 100
+
+
+def test_the_rover_serves_the_edges_of_wheels_that_turn_alike_and_agrees():
+    """The ElementAll rover driving straight: the two wheels of a side turn alike, so their
+    encoders' edges fall on the same ticks, on two modules. One served run takes both modules'
+    crossings in time order (each module's handler is its own), and every state agrees."""
+    fast = run_both(lambda e: mcusim.load("elementall", overrides={"cmd_vel.linear": 0.5}, engine=e),
+                    0.3, step=0.01)
+    edges = sum(fast.part(f"mcm{i}.encoder").edges for i in range(1, 5))
+    assert edges > 1000 and served(fast) > 0.5 * edges
+
+
+ROVER_FAULTS = {
+    "estop": 'fault = { kind = "estop", estop = "estop" }',
+    "silent": 'fault = { kind = "i2c_silent", board = "mcm2" }',
+    "sag": 'fault = { kind = "battery_sag", battery = "battery", soc = 0.15, amps = 40 }',
+    "none": None,
+}
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(lin=st.floats(-0.6, 0.6), ang=st.floats(-0.5, 0.5), fault=st.sampled_from(sorted(ROVER_FAULTS)),
+       t_fault=st.integers(160, 260), unequal=st.booleans())
+def test_served_edges_agree_on_generated_rover_runs(tmp_path, lin, ang, fault, t_fault, unequal):
+    """Drive and turn, an E-stop, a module dropping off the bus or a battery sag while the wheels
+    turn, with wheels alike or one heavier (then their edges fall apart)."""
+    body = (f'[scenario]\nboard = "elementall"\nduration = "280ms"\n\n'
+            f'[[at]]\ntime = "0s"\npublish = {{ "cmd_vel.linear" = {lin!r}, "cmd_vel.angular" = {ang!r} }}\n')
+    if ROVER_FAULTS[fault]:
+        body += f'\n[[at]]\ntime = "{t_fault}ms"\n{ROVER_FAULTS[fault]}\n'
+    if unequal:
+        body += '\n[set]\n"mcm3.motor.J" = 3e-5\n'
+    path = tmp_path / "rover.toml"
+    path.write_text(body)
+    run_both(lambda engine: _build(path, engine)[0], 0.28, step=0.01)

@@ -32,24 +32,22 @@ these outlive the handler, so serving leaves them as the edge-by-edge run leaves
 
 from __future__ import annotations
 
-from ..kernel import PRIO_CPU
+from ..kernel import PRIO_CPU, PRIO_PLANT
 
 
 class Route:
     """How an edge on one net reaches firmware when it is served: the CPU, the vector, the clock
     the request is synchronised to, the handler's ticks from request to return, its closed form."""
 
-    __slots__ = ("clock", "cpu", "form", "kernel", "ticks", "vector")
+    __slots__ = ("clock", "cpu", "form", "ticks", "vector")
 
-    def __init__(self, kernel, clock, cpu, vector, ticks, form):
-        self.kernel, self.clock, self.cpu, self.vector = kernel, clock, cpu, vector
-        self.ticks, self.form = ticks, form
+    def __init__(self, clock, cpu, vector, ticks, form):
+        self.clock, self.cpu, self.vector, self.ticks, self.form = clock, cpu, vector, ticks, form
 
-    def returns(self, t: int):
-        """The tick at which the handler of an edge at ``t`` returns, if nothing queued comes before
-        it and the run reaches it; else None."""
-        r = self.clock.next_edge(t) + self.ticks
-        return r if self.kernel.would_be_next(r, PRIO_CPU) else None
+    def returns(self, t: int) -> int:
+        """The tick at which the handler of an edge at ``t`` returns, edge by edge: the request is
+        taken at the first clock edge at or after ``t``, then entry latency and handler cycles."""
+        return self.clock.next_edge(t) + self.ticks
 
     def serve(self, levels) -> None:
         """The handler's effect, at its entry, with the levels of the form's nets given by
@@ -61,7 +59,7 @@ class Route:
         self.form.step(*[levels.get(n, n.level) for n in self.form.nets])
 
 
-def route(net, kernel):
+def route(net):
     """The :class:`Route` of an edge on ``net`` now, or None when it would not be served."""
     if net.wave is not None or net.forced or len(net._drivers) != 1 or net._wlisteners:
         return None
@@ -81,4 +79,95 @@ def route(net, kernel):
     entry, cost, form = got
     if any(n.wave is not None for n in form.nets):
         return None         # a level the handler reads would depend on the tick
-    return Route(kernel, clock, cpu, vector, entry + cost, form)
+    return Route(clock, cpu, vector, entry + cost, form)
+
+
+class Item:
+    """One crossing a stream may serve: its tick, its handler's return, the stream's next
+    crossing (tick, direction, the guards firing there) or None, and what the stream needs to
+    commit it."""
+
+    __slots__ = ("data", "nxt", "ret", "stream", "t")
+
+    def __init__(self, stream, t, ret, nxt, data):
+        self.stream, self.t, self.ret, self.nxt, self.data = stream, t, ret, nxt, data
+
+
+def _stream_of(ev, cpus):
+    """The stream of crossings whose queued event ``ev`` is (a motor's next encoder crossing whose
+    edges could be served on CPUs other than ``cpus``), or None."""
+    owner = getattr(ev.fn, "__self__", None)
+    served_stream = getattr(owner, "served_stream", None)
+    if served_stream is None:
+        return None
+    stream = served_stream(ev)
+    if stream is None or stream.cpus & cpus:
+        return None
+    return stream
+
+
+def serve_run(kernel, owner) -> bool:
+    """Serve the crossings of the stream ``owner``, whose first crossing is due now, and of the
+    streams of other encoders whose queued crossings come in between, in time order, as long as
+    each one is served (module docstring). Their events are *absorbed*: they are no barrier, and
+    they are cancelled if their stream serves. Returns False if not even the first crossing is
+    served (nothing changed); else ``kernel.now`` is the last served handler's return, each
+    stream has committed its crossings and scheduled what comes next (:meth:`finish`).
+
+    Of the planned crossings, the longest prefix in time order is committed whose handlers all
+    return before the first crossing left out: edge by edge, that crossing's events come after
+    them all, whichever stream it belongs to."""
+    streams = [owner]
+    cpus = set(owner.cpus)
+    absorbed = set()
+    horizon = kernel.horizon
+    plan = []
+    t_stop = None
+    head = kernel.first_queued()     # the first queued event not absorbed (the queue is left as it is)
+
+    def barrier_before(time, prio):
+        """Absorb the queued crossings up to (time, prio); True if another event comes first."""
+        nonlocal head
+        while head is not None and (head[0], head[1]) <= (time, prio):
+            other = _stream_of(head[3], cpus)
+            if other is None:
+                return True
+            streams.append(other)
+            absorbed.add(head[3])
+            cpus.update(other.cpus)
+            head = kernel.first_queued(absorbed)
+        return False
+
+    while True:
+        pending = [(s.pending[0], i) for i, s in enumerate(streams) if s.pending is not None]
+        if not pending:
+            break
+        t, i = min(pending)
+        if t > horizon or barrier_before(t, PRIO_PLANT):
+            t_stop = t
+            break
+        if any(x.pending is not None and x.pending[0] < t for x in streams):
+            continue        # a stream absorbed just now has an earlier crossing
+        s = streams[i]
+        item = s.plan(t, s.pending[1])
+        if (item is None or item.ret > horizon or (item.nxt is not None and item.nxt[0] <= item.ret)
+                or barrier_before(item.ret, PRIO_CPU)):
+            t_stop = t
+            break
+        plan.append(item)
+        s.pending = item.nxt
+    # the longest prefix whose handlers all return before the first crossing left out
+    n, top, best = 0, -1, 0
+    for j, item in enumerate(plan):
+        top = max(top, item.ret)
+        nxt_t = plan[j + 1].t if j + 1 < len(plan) else t_stop
+        if nxt_t is None or top < nxt_t:
+            best, n = j + 1, top
+    if best == 0:
+        return False
+    for item in plan[:best]:
+        item.stream.commit(item)
+    kernel.now = max(kernel.now, n)
+    for s in streams:
+        s.finish()
+    return True

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine import periodmap
+from ..engine import periodmap, served
 from ..engine.screening import ChunkTraj, PeriodPlan
 from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
@@ -143,8 +143,11 @@ class PeriodicDrive:
         guards = [g for prov in self._providers if getattr(prov, "passive_guards", False)
                   for g in prov.plant_guards()]
         best, firing = self._first_passive(guards, after)
-        if best is None:
-            return
+        if best is not None:
+            self._schedule_passive(best, end, firing)
+
+    def _schedule_passive(self, best: int, end: int, firing) -> None:
+        """The passive ``firing`` guards fire at offset ``best`` of the trajectory ending at ``end``."""
         if best == end:      # at the segment's own event: that event runs it first
             if self._pending is not None and self._pending_time == self._t0 + best:
                 self._pending = self._pending + firing
@@ -155,11 +158,49 @@ class PeriodicDrive:
             self._ev_passive = self.kernel.at(self._t0 + best, self._on_passive, prio=PRIO_PLANT)
 
     def _locate_passive(self, guards, after_tick: int):
-        """For a provider serving a run of its crossings (:meth:`QuadratureEncoder.serve_crossings`):
-        the absolute tick at which the first of its ``guards`` fires after ``after_tick`` on the
-        current trajectory, and those guards; (None, []) if none does before its end."""
+        """For an encoder serving its crossings (:mod:`mcusim.engine.served`): the absolute tick at
+        which the first of its ``guards`` fires after ``after_tick`` on the current trajectory,
+        and those guards; (None, []) if none does before its end."""
         best, firing = self._first_passive(guards, after_tick - self._t0)
         return (None, []) if best is None else (self._t0 + best, firing)
+
+    def _state_ahead(self, tick: int):
+        """(i, ω, θ) at ``tick`` ≥ now on the current trajectory, as the observers read it there."""
+        n = tick - self._t0
+        return self._x0 if (n == 0 or self._traj is None) else self._at(self._traj, n)
+
+    def _serving_provider(self):
+        """The motor's only passive provider if it can serve its crossings (else None)."""
+        firing = self._passive
+        if len(firing) != 1:
+            return None
+        prov = firing[0][5]
+        if not hasattr(prov, "crossing_stream") or sum(
+                1 for p in self._providers if getattr(p, "passive_guards", False)) != 1:
+            return None
+        return prov
+
+    def served_stream(self, ev):
+        """The stream of this motor's encoder crossings whose next one is the queued event ``ev``,
+        for another encoder's served run to absorb (:func:`mcusim.engine.served.serve_run`)."""
+        prov = self._serving_provider() if ev is self._ev_passive else None
+        if prov is None:
+            return None
+
+        def finish(nxt):    # the run served some: its event is done
+            ev.cancel()
+            self._ev_passive = None
+            self._served_next(nxt)
+        return prov.crossing_stream(self._passive[0][6], ev.time, self._locate_passive, self._state_ahead,
+                                    finish)
+
+    def _served_next(self, nxt) -> None:
+        """Schedule the crossing a served run located after its last one ((tick, direction, guards)
+        or None): the one ``_find_passive`` would find now, since none lies in between."""
+        if nxt is not None:
+            tr = self._traj
+            end = tr.periods * tr.plan.P if tr.kind == "chunk" else self._seg_end
+            self._schedule_passive(nxt[0] - self._t0, end, nxt[2])
 
     def _on_passive(self):
         self._ev_passive = None
@@ -167,16 +208,14 @@ class PeriodicDrive:
         # the edge-by-edge engine starts a segment here and samples |i| at its start: an interior
         # point of this segment, never above the maximum the segment's own tracking finds (its
         # boundaries and the current's stationary points), so nothing is sampled here
-        firing = self._passive
-        prov = firing[0][5] if len(firing) == 1 else None
-        if prov is not None and hasattr(prov, "serve_crossings") and sum(
-                1 for p in self._providers if getattr(p, "passive_guards", False)) == 1:
-            # the only passive provider: a run of its crossings may be served at once (it gives
-            # up, edge by edge, where anything could come in between)
-            prov.serve_crossings(firing[0][6], self._locate_passive)
-        else:
-            for g in firing:
-                g[5].on_guard(g[6])
+        prov = self._serving_provider()
+        stream = None if prov is None else prov.crossing_stream(
+            self._passive[0][6], self.kernel.now, self._locate_passive, self._state_ahead, self._served_next,
+            first=True)
+        if stream is not None and served.serve_run(self.kernel, stream):
+            return          # the run scheduled what comes next (_served_next)
+        for g in self._passive:
+            g[5].on_guard(g[6])
         if self._traj is tr and self._ev_passive is None:
             self._find_passive()
 

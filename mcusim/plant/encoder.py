@@ -23,10 +23,63 @@ import math
 
 from ..engine import served
 from ..errors import ConfigError
-from ..kernel import PRIO_CPU, PRIO_PLANT
+from ..kernel import PRIO_PLANT
 from ..signals import Net
 
 _QUAD = ((0, 0), (1, 0), (1, 1), (0, 1))
+
+
+class _Crossings:
+    """An encoder's crossings as a stream of served edges (``served.serve_run``): ``plan`` one
+    after the other from the planned position and output levels, ``commit`` the ones served."""
+
+    __slots__ = ("cpus", "enc", "la", "last", "lb", "locate", "n", "on_finish", "pending", "pos", "ra", "rb",
+                 "state_at")
+
+    def __init__(self, enc, direction, tick, locate, state_at, ra, rb, on_finish):
+        self.enc, self.locate, self.state_at, self.on_finish = enc, locate, state_at, on_finish
+        self.ra, self.rb = ra, rb
+        self.cpus = frozenset((ra.cpu, rb.cpu))
+        self.pending = (tick, direction)
+        self.pos, self.la, self.lb = enc.position, enc.a.level, enc.b.level
+        self.n = 0
+
+    def plan(self, t, d):
+        """The crossing at tick ``t`` in direction ``d`` as a served edge, or None if it is not one
+        edge of one output (more than one threshold in the tick, or both outputs change)."""
+        enc = self.enc
+        st = enc.step
+        th = self.state_at(t)[2]
+        k = self.pos + d
+        if (th >= (k + 1) * st) if d > 0 else (th < k * st):
+            return None         # more than one threshold in this tick: on_guard's loop
+        qa, qb = _QUAD[(k - enc._slip) & 3]
+        if (qa != self.la) == (qb != self.lb):
+            return None         # not exactly one output changes (after a glitch)
+        route = self.ra if qa != self.la else self.rb
+        nt, firing = self.locate(enc._guards_at(k), t)
+        self.pos, self.la, self.lb = k, qa, qb
+        return served.Item(self, t, route.returns(t), None if nt is None else (nt, firing[0][6], firing),
+                           (k, qa, qb, route))
+
+    def commit(self, item):
+        k, qa, qb, route = item.data
+        enc = self.enc
+        enc.position = k
+        enc.edges += 1
+        route.serve({enc.a: qa, enc.b: qb})
+        self.n += 1
+        self.last = item
+
+    def finish(self):
+        """After the run: the outputs show the last served edge, and ``on_finish(nxt)`` gets the
+        next crossing located from the last one served ((tick, direction, firing guards) or None)."""
+        if self.n:
+            enc = self.enc
+            qa, qb = _QUAD[(enc.position - enc._slip) & 3]
+            enc.a.settle(enc.name, qa)
+            enc.b.settle(enc.name, qb)
+            self.on_finish(self.last.nxt)
 
 
 class QuadratureEncoder:
@@ -105,63 +158,30 @@ class QuadratureEncoder:
             self.edges += 1
             self._out()
 
-    def serve_crossings(self, direction, locate) -> None:
-        """Fast engine: :meth:`on_guard` for the crossing due now and the ones after it, as long as
-        each one's edge is *served* (:mod:`mcusim.engine.served`): its interrupt handler applied
-        in closed form and its CPU time charged at its ticks, with no event of its own.
+    def crossing_stream(self, direction, tick, locate, state_at, on_finish, first=False):
+        """Fast engine: the crossing due at ``tick`` and the ones after it as a stream of served
+        edges (:func:`mcusim.engine.served.serve_run`), or None if its edges cannot be served now.
 
         ``locate(guards, after)`` is the motor's search: (tick, guards firing there) of the first
-        of ``guards`` to fire after tick ``after`` on its trajectory, or (None, []). A crossing
-        whose edge cannot be served runs as :meth:`on_guard` runs it: here, at its own tick, if
-        that is the next thing to happen; else the motor schedules it as usual."""
-        kernel, a, b = self.kernel, self.a, self.b
-        ra = rb = None
-        # a handler takes at least the ticks it took last time: if even that return would not be
-        # the next thing to happen (the rover's wheels alike: a twin's edge at the same tick), the
-        # routes need not be looked up
-        if not self._drop and (self._serve_ticks is None
-                               or kernel.would_be_next(kernel.now + self._serve_ticks, PRIO_CPU)):
-            ra, rb = served.route(a, kernel), served.route(b, kernel)
+        of ``guards`` to fire after tick ``after`` on its trajectory, or (None, []);
+        ``state_at(tick)`` its state there. ``on_finish(nxt)`` runs after the stream has committed
+        crossings, with the next one located ((tick, direction, guards) or None), for the motor to
+        schedule. ``first``: the crossing is the event running now."""
+        if self._drop:
+            return None
+        kernel = self.kernel
+        if first and self._serve_ticks is not None:
+            # the crossing due now: a handler takes at least the ticks it took last time; if an
+            # event that is no encoder crossing comes before that, nothing can be served
+            head = kernel.first_queued()
+            if (head is not None and head[0] < tick + self._serve_ticks
+                    and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
+                return None
+        ra, rb = served.route(self.a), served.route(self.b)
         if ra is None or rb is None:
-            self.on_guard(direction)
-            return
+            return None
         self._serve_ticks = min(ra.ticks, rb.ticks)
-        st, motor = self.step, self.motor
-        la, lb = a.level, b.level
-        d = direction
-        n_served = 0
-        run_here = True         # the crossing due now runs as on_guard runs it
-        while True:
-            th = motor.angle
-            k = self.position + d
-            if (th >= (k + 1) * st) if d > 0 else (th < k * st):
-                break           # more than one threshold in this tick: on_guard's loop
-            qa, qb = _QUAD[(k - self._slip) & 3]
-            if (qa != la) == (qb != lb):
-                break           # not exactly one output changes (after a glitch)
-            route = ra if qa != la else rb
-            ret = route.returns(kernel.now)
-            if ret is None:
-                break
-            nxt, firing = locate(self._guards_at(k), kernel.now)
-            if nxt is not None and nxt <= ret:
-                break           # the next edge comes before this handler returns: timing interacts
-            self.position = k
-            self.edges += 1
-            la, lb = qa, qb
-            route.serve({a: qa, b: qb})
-            kernel.now = ret
-            n_served += 1
-            if nxt is None or not kernel.would_be_next(nxt, PRIO_PLANT):
-                run_here = False    # the motor schedules the next crossing (if any) as usual
-                break
-            kernel.now = nxt        # the next crossing's event would be the next one: it is here
-            d = firing[0][6]
-        if n_served:
-            a.settle(self.name, la)
-            b.settle(self.name, lb)
-        if run_here:
-            self.on_guard(d)
+        return _Crossings(self, direction, tick, locate, state_at, ra, rb, on_finish)
 
     # ---- fault injection ---------------------------------------------------------------------------
     def glitch(self, channel: str = "A", width: int = 1) -> None:
