@@ -1,31 +1,41 @@
-"""Served edges: a run of pin edges whose interrupt handlers act in closed form (fast engine).
+"""Served edges: runs of pin edges whose interrupt handlers act in closed form (fast engine).
 
 Edge by edge, a quadrature encoder on an AVR's INT0/INT1 costs for every edge: the plant event
 that finds it, the net change, the external-interrupt flag, the dispatch, the handler's entry
 (which reads the pins) and its return. The handler's effect, though, is a pure function of the
-pin levels it reads (the PJRC Encoder's ``update``: a state table). Where nothing else can happen
-between one edge and the next handler's return, the fast engine *serves* the edge instead: the
-handler's declared closed form (:class:`mcusim.firmware.ClosedForm`) is applied to the levels
-the handler would read, and the CPU is charged the cycles and the handler count the edge-by-edge
-run charges, at the same ticks, without the events.
+pin levels it reads (the PJRC Encoder's ``update``: a state table). Where nothing can interact
+with it, the fast engine *serves* the edge instead: the handler's declared closed form
+(:class:`mcusim.firmware.ClosedForm`) is applied to the levels the handler would read, and the
+CPU is charged the cycles and the handler count the edge-by-edge run charges, without the events.
 
-An edge on ``net`` is served when all of this holds at its tick (:func:`route` and
-:meth:`Route.returns` check it; the plant side adds the last two):
+:func:`serve_run` serves a run of edges, from the crossing whose event runs now. One edge of one
+encoder (a *stream* of crossings, the plant side: ``QuadratureEncoder.crossing_stream``) is served
+when:
 
-* the net's only listener is an interrupt source whose whole response to the edge is one request
-  of one vector (:meth:`served_vector`, e.g. INTn in any-change mode, enabled, its flag clear), the
-  net has one driver and is neither forced nor a waveform;
-* the CPU would take that request at once and do nothing else (:meth:`mcusim.firmware.Cpu.served`:
-  no handler running or pending, global interrupts on, no task running, ready or waiting for an
-  interrupt, interrupt lines not traced) and the handler declares a closed form that still
-  stands for it (the handler bound, no register log watching the reads it skips);
-* the handler's return, ``next CPU clock edge after the edge + (entry latency + cost) cycles``,
-  would come before every queued event and within the run (:meth:`Kernel.would_be_next`);
-* the next edge comes after that return (otherwise the handler would read the later levels, or
-  the next request would wait for the return: timing interacts, and that edge runs edge by edge);
-* exactly one served net changes level at the edge.
+* each of its outputs' nets has one listener, an interrupt source whose whole response to an edge
+  is one request of one vector (``served_vector``: INTn in any-change mode, enabled, its flag
+  clear), one driver, no force, no waveform (:func:`route`);
+* the CPU would take that request at once and do nothing else (``Cpu.served``: no handler running
+  or pending, global interrupts on, no task running, ready or waiting for an interrupt, interrupt
+  lines not traced) and the handler declares a closed form that still stands for it (the handler
+  bound, no register log watching the reads it skips). Both are looked up when the stream joins
+  the run and hold at its later crossings because no event that is not a served crossing comes
+  before them (the barrier below);
+* exactly one output changes, by one threshold;
+* its handler's return (:meth:`Route.returns`: first CPU clock edge at or after the edge, plus
+  entry latency and handler cycles) comes before the first queued event that is not a crossing
+  absorbed into the run (the *barrier*), and within the run's horizon;
+* the stream's next crossing comes after that return (otherwise the handler would read the later
+  levels, or the next request would wait or be lost: timing interacts).
 
-The levels the handler reads are the ones after its edge: the next edge is later than its return.
+Several streams on different CPUs share a run (the rover's wheels that turn alike put their edges
+on the same ticks of two modules): a queued crossing event of another encoder that comes before
+the barrier is *absorbed*, its stream planned with the others in time order. The run commits the
+longest prefix of planned crossings whose handlers all return before the first crossing left out,
+whichever stream that is: edge by edge, that crossing's events come after all of them. Absorbed
+events are cancelled only if their stream committed; the others stay queued as they were.
+
+The levels a handler reads are the ones after its edge: the next edge comes after its return.
 Flags set and cleared, the I flag cleared at entry and set by RETI, the pending-line bits: none of
 these outlive the handler, so serving leaves them as the edge-by-edge run leaves them.
 """
@@ -111,8 +121,9 @@ def serve_run(kernel, owner) -> bool:
     streams of other encoders whose queued crossings come in between, in time order, as long as
     each one is served (module docstring). Their events are *absorbed*: they are no barrier, and
     they are cancelled if their stream serves. Returns False if not even the first crossing is
-    served (nothing changed); else ``kernel.now`` is the last served handler's return, each
-    stream has committed its crossings and scheduled what comes next (:meth:`finish`).
+    served (nothing changed); else ``kernel.now`` is the latest return among the committed
+    handlers, and each stream has committed its crossings and scheduled what comes next
+    (``finish``).
 
     Of the planned crossings, the longest prefix in time order is committed whose handlers all
     return before the first crossing left out: edge by edge, that crossing's events come after
@@ -139,16 +150,19 @@ def serve_run(kernel, owner) -> bool:
         return False
 
     while True:
-        pending = [(s.pending[0], i) for i, s in enumerate(streams) if s.pending is not None]
-        if not pending:
+        s = t = None            # the stream with the earliest crossing (the first one on a tie)
+        for x in streams:
+            p = x.pending
+            if p is not None and (t is None or p[0] < t):
+                s, t = x, p[0]
+        if s is None:
             break
-        t, i = min(pending)
+        known = len(streams)
         if t > horizon or barrier_before(t, PRIO_PLANT):
             t_stop = t
             break
-        if any(x.pending is not None and x.pending[0] < t for x in streams):
-            continue        # a stream absorbed just now has an earlier crossing
-        s = streams[i]
+        if len(streams) != known:
+            continue            # a stream absorbed just now may have an earlier crossing
         item = s.plan(t, s.pending[1])
         if (item is None or item.ret > horizon or (item.nxt is not None and item.nxt[0] <= item.ret)
                 or barrier_before(item.ret, PRIO_CPU)):

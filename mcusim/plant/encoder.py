@@ -114,7 +114,7 @@ class QuadratureEncoder:
         self.dropped = 0
         self._drop = 0                     # crossings still to suppress (drop_edges)
         self._slip = 0                     # outputs show the state of position - _slip
-        self._serve_ticks = None           # fast engine: handler ticks of the last served route
+        self._serve_hint = None            # fast engine: (cpu, vectors) of the last routes
         self._out()
         motor.add_guard_provider(self)
 
@@ -170,17 +170,23 @@ class QuadratureEncoder:
         if self._drop:
             return None
         kernel = self.kernel
-        if first and self._serve_ticks is not None:
-            # the crossing due now: a handler takes at least the ticks it took last time; if an
-            # event that is no encoder crossing comes before that, nothing can be served
-            head = kernel.first_queued()
-            if (head is not None and head[0] < tick + self._serve_ticks
-                    and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
-                return None
+        hint = self._serve_hint
+        if first and hint is not None:
+            # the crossing due now: its handler takes at least entry latency + the cheaper of the
+            # two handlers as bound now; if an event of no motor comes before that return (a
+            # motor's may be a crossing to absorb), the route lookups would be in vain
+            cpu, va, vb = hint
+            ha, hb = cpu.vectors.get(va), cpu.vectors.get(vb)
+            if ha is not None and hb is not None:
+                head = kernel.first_queued()
+                ticks = (cpu.entry_latency + min(ha[1], hb[1])) * cpu.clock.period
+                if (head is not None and head[0] < tick + ticks
+                        and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
+                    return None
         ra, rb = served.route(self.a), served.route(self.b)
         if ra is None or rb is None:
             return None
-        self._serve_ticks = min(ra.ticks, rb.ticks)
+        self._serve_hint = (ra.cpu, ra.vector, rb.vector)
         return _Crossings(self, direction, tick, locate, state_at, ra, rb, on_finish)
 
     # ---- fault injection ---------------------------------------------------------------------------
