@@ -18,6 +18,14 @@ from pathlib import Path
 from mcusim.cli import main
 
 REL = 1e-9
+# faults of generated rover runs: scenario lines keyed by name (None: no fault)
+ROVER_FAULTS = {
+    "estop": 'fault = { kind = "estop", estop = "estop" }',
+    "silent": 'fault = { kind = "i2c_silent", board = "mcm2" }',
+    "sag": 'fault = { kind = "battery_sag", battery = "battery", soc = 0.15, amps = 40 }',
+    "none": None,
+}
+
 WALL_KEYS = {"wall_s", "realtime_factor", "engine", "events"}
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from engine_compare import ROVER_FAULTS as FAULTS
 from engine_compare import differences
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -144,12 +145,6 @@ def test_engines_agree_on_hand_turns_near_and_above_the_isr_bound_edge_rate(tmp_
     _agree(sc.parent, ["pro-mini", "--scenario", str(sc)])
 
 
-FAULTS = {
-    "estop": 'fault = { kind = "estop", estop = "estop" }',
-    "silent": 'fault = { kind = "i2c_silent", board = "mcm2" }',
-    "sag": 'fault = { kind = "battery_sag", battery = "battery", soc = 0.15, amps = 40 }',
-    "none": None,
-}
 
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

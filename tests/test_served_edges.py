@@ -11,6 +11,7 @@ ExtInt's lost-edge counts, the firmware's encoder state, the plant encoder and t
 
 import math
 
+from engine_compare import ROVER_FAULTS
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -232,12 +233,6 @@ def test_the_rover_serves_the_edges_of_wheels_that_turn_alike_and_agrees():
     assert edges > 1000 and served(fast) > 0.5 * edges
 
 
-ROVER_FAULTS = {
-    "estop": 'fault = { kind = "estop", estop = "estop" }',
-    "silent": 'fault = { kind = "i2c_silent", board = "mcm2" }',
-    "sag": 'fault = { kind = "battery_sag", battery = "battery", soc = 0.15, amps = 40 }',
-    "none": None,
-}
 
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
