@@ -46,7 +46,27 @@ class Traj:
     eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·(e^{lam[0]·t} − 1))``.
     """
 
-    __slots__ = ("b", "c", "cplx", "d1", "d2", "kind", "lam1", "lam2", "m2", "x0")
+    __slots__ = ("_m2", "b", "c", "cplx", "d1", "d2", "kind", "lam1", "lam2", "x0")
+
+    @property
+    def m2(self):
+        """Bounds of |x1''|, |x2''|, |x3''| over t ≥ 0 (per s²), for guard location; computed when
+        first asked (a chunk's piece closed forms are only evaluated)."""
+        m2 = self._m2
+        if m2 is None:
+            c0, c1, c2 = self.c
+            if self.cplx:
+                l2 = abs(self.lam1) ** 2
+                e0, e1, e2 = self.d1
+                m2 = (2.0 * abs(c0) + 2.0 * abs(e0) * l2, 2.0 * abs(c1) + 2.0 * abs(e1) * l2,
+                      2.0 * abs(c2) + 2.0 * abs(e2) * l2)
+            else:
+                s1, s2 = self.lam1 * self.lam1, self.lam2 * self.lam2
+                (e0, e1, e2), (f0, f1, f2) = self.d1, self.d2
+                m2 = (2.0 * abs(c0) + abs(e0) * s1 + abs(f0) * s2, 2.0 * abs(c1) + abs(e1) * s1 + abs(f1) * s2,
+                      2.0 * abs(c2) + abs(e2) * s1 + abs(f2) * s2)
+            self._m2 = m2
+        return m2
 
     def eval(self, t: float):
         """State (x1, x2, x3) at ``t`` seconds after the segment start (``t == 0`` gives x0 exactly)."""
@@ -115,17 +135,7 @@ def _make(kind, x0, b, c, lam1, lam2, d1, d2, cplx):
     tr = Traj()
     tr.kind, tr.x0, tr.b, tr.c = kind, tuple(x0), b, c
     tr.lam1, tr.lam2, tr.d1, tr.d2, tr.cplx = lam1, lam2, d1, d2, cplx
-    c0, c1, c2 = c
-    if cplx:
-        l2 = abs(lam1) ** 2
-        e0, e1, e2 = d1
-        tr.m2 = (2.0 * abs(c0) + 2.0 * abs(e0) * l2, 2.0 * abs(c1) + 2.0 * abs(e1) * l2,
-                 2.0 * abs(c2) + 2.0 * abs(e2) * l2)
-    else:
-        s1, s2 = lam1 * lam1, lam2 * lam2
-        (e0, e1, e2), (f0, f1, f2) = d1, d2
-        tr.m2 = (2.0 * abs(c0) + abs(e0) * s1 + abs(f0) * s2, 2.0 * abs(c1) + abs(e1) * s1 + abs(f1) * s2,
-                 2.0 * abs(c2) + abs(e2) * s1 + abs(f2) * s2)
+    tr._m2 = None
     return tr
 
 
