@@ -496,7 +496,7 @@ def cmd_bench(args) -> int:
     name = "fast" if r["engine"] == "both" else r["engine"]
     print(f"real-time factor {r['realtime_factor']:.3f} simulated s per wall s ({name} engine, "
           f"{100 * r['fast_fraction']:.0f} % of the motor time in whole-period chunks, "
-          f"{r.get('served_isrs', 0):,} handler runs served in closed form); "
+          f"{r['served_isrs']:,} handler runs served in closed form); "
           f"{r['events']:,} events ({r['events_per_wall_s']:,.0f} per wall s)")
     if "instructions" in r:
         print(f"{r['instructions']:,} instructions ({r['instructions_per_wall_s']:,.0f} per wall s)")

@@ -33,7 +33,7 @@ class _Crossings:
     """An encoder's crossings as a stream of served edges (``served.serve_run``): ``plan`` one
     after the other from the planned position and output levels, ``commit`` the ones served."""
 
-    __slots__ = ("cpus", "enc", "la", "last", "lb", "locate", "n", "on_finish", "pending", "pos", "ra", "rb",
+    __slots__ = ("cpus", "enc", "la", "last", "lb", "locate", "on_finish", "pending", "pos", "ra", "rb",
                  "state_at")
 
     def __init__(self, enc, direction, tick, locate, state_at, ra, rb, on_finish):
@@ -42,7 +42,7 @@ class _Crossings:
         self.cpus = frozenset((ra.cpu, rb.cpu))
         self.pending = (tick, direction)
         self.pos, self.la, self.lb = enc.position, enc.a.level, enc.b.level
-        self.n = 0
+        self.last = None        # the last crossing committed
 
     def plan(self, t, d):
         """The crossing at tick ``t`` in direction ``d`` as a served edge, or None if it is not one
@@ -68,13 +68,12 @@ class _Crossings:
         enc.position = k
         enc.edges += 1
         route.serve({enc.a: qa, enc.b: qb})
-        self.n += 1
         self.last = item
 
     def finish(self):
         """After the run: the outputs show the last served edge, and ``on_finish(nxt)`` gets the
         next crossing located from the last one served ((tick, direction, firing guards) or None)."""
-        if self.n:
+        if self.last is not None:
             enc = self.enc
             qa, qb = _QUAD[(enc.position - enc._slip) & 3]
             enc.a.settle(enc.name, qa)
