@@ -8,8 +8,9 @@ from mcusim.signals import Net
 from mcusim.time import TimeBase
 
 
-def run(engine, segs, n_end, motor_kw=None, bridge_kw=None, samples=400, enc=True):
-    """segs: {net: [(t, spec)]}, spec = int level or (rise_off, period, width) relative to t."""
+def run(engine, segs, n_end, motor_kw=None, bridge_kw=None, samples=400, enc=True, param_changes=()):
+    """segs: {net: [(t, spec)]}, spec = int level or (rise_off, period, width) relative to t;
+    param_changes: [(t, {motor parameter: value})] applied with ``DcMotor.set_params`` at t."""
     tb = TimeBase([216_000_000])
     k = Kernel(tb, engine)
     nets = {n: Net(n) for n in ("in1", "in2", "en")}
@@ -47,6 +48,8 @@ def run(engine, segs, n_end, motor_kw=None, bridge_kw=None, samples=400, enc=Tru
                     if tt >= t_next:
                         break
                     k.at(tt, net.set, "drv", lv, prio=PRIO_HW)
+    for t, kw in param_changes:
+        k.at(t, lambda kw=kw: m.set_params(**kw), prio=PRIO_HW)
     step = max(1, n_end // samples)
     for s in range(0, n_end + 1, step):
         k.at(s, lambda: out["state"].append((k.now, m.current, m.speed, m.angle)), prio=PRIO_OBSERVE)

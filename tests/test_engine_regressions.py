@@ -76,3 +76,19 @@ def test_peak_current_of_an_underdamped_segment_is_its_true_maximum():
     dense = max(abs(tr.eval(t_end * j / 20000)[0]) for j in range(20001))
     tracked = max([abs(tr.eval(t_end)[0])] + [abs(tr.eval(t)[0]) for t in tr.x1_extrema(t_end)])
     assert math.isclose(tracked, dense, rel_tol=1e-6) and tracked >= dense * (1 - 1e-12)
+
+
+def test_a_stiction_change_mid_run_is_seen_by_the_cached_period_plans():
+    """The fast engine caches each period's plan (its maps and guards) per drive, mode and motor
+    parameters. At 6 % duty a stuck shaft's current rises towards 0.258 A, below the 0.45 A
+    breakaway of tau_s = 5 mN·m; lowered to 2.6 mN·m (breakaway 0.236 A) at 0.5 ms, while the current
+    is still rising and the shaft still stuck (the same mode, the same plan key but for tau_s), the
+    shaft must break away about 1.2 ms later, as in the reference engine: a breakaway guard
+    kept from the plan built before the change would never fire."""
+    MS = 216000
+    segs = {"in1": [(0, (0, 4320, 259))], "in2": [(0, 0)], "en": [(0, 1)]}
+    changes = [(MS // 2 + 1234, {"tau_s": 2.6e-3})]
+    d, a, b = compare_plant(segs, 10 * MS, samples=1000, param_changes=changes)
+    assert d is None, d
+    moved = [s for s in a["state"] if s[0] < 3 * MS and s[2] > 0.0]
+    assert moved, "the shaft should break away once tau_s is lowered"

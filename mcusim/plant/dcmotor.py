@@ -186,6 +186,7 @@ class DcMotor(PeriodicDrive):
         self._eig_cache = {}       # per (R_total, L, K, J_eq, b): kept when only an input changes
         self._full_cache = {}
         self._plans = {}           # fast engine: PeriodPlan per (schedule, first piece, modes, params)
+        self._flows = {}           # fast engine: a piece's delta map per (drive, mode, ticks, params)
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
         self._stale = False        # fast engine: inputs changed at this tick, rebuild due
@@ -202,7 +203,8 @@ class DcMotor(PeriodicDrive):
         self._J = p.J_eq
         self._tlp = p.load_reflected(+1)
         self._tln = p.load_reflected(-1)
-        self._pkey = (p.L, p.K, self._J, p.b, p.tau_c, self._tlp, self._tln)
+        # every parameter a segment, a piece flow or a guard depends on besides R (keys of the caches)
+        self._pkey = (p.L, p.K, self._J, p.b, p.tau_c, p.tau_s, self._tlp, self._tln)
 
     def set_params(self, **overrides) -> None:
         """Change parameters at run time (advances to now first). Unknown names raise ConfigError."""

@@ -22,13 +22,34 @@ from . import pwl
 # nothing fires; chunks that input changes keep cutting short bring it down, not below CHUNK_LO
 # (_chunk_lived)
 CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
+# cached period plans and piece flows per motor, least recently used dropped first (a plan's power
+# table is up to CHUNK_MAX + 1 4×4 maps, 66 kB: the bound keeps memory flat in run length)
+PLANS_MAX, FLOWS_MAX = 64, 512
+
+
+def _lru_put(cache: dict, key, value, limit: int) -> None:
+    """Insert into a dict used as an LRU cache (insertion order = use order)."""
+    if len(cache) >= limit:
+        del cache[next(iter(cache))]
+    cache[key] = value
 
 
 class PeriodicDrive:
     """Mixin of DcMotor (uses its state: _x0, _t0, _traj, _providers, _driver, params ...)."""
 
     def _piece_flow(self, drive, es, s, ticks):
-        """(flow, |A|, |u|, (a11, a12, u1)) of one piece of ``ticks`` in mode (es, s)."""
+        """(flow, |A|, |u|, (a11, a12, u1), flow rows) of one piece of ``ticks`` in mode (es, s),
+        cached per (drive, mode, ticks, parameters): a PID loop that moves the duty by a count or
+        two keeps meeting the same pieces."""
+        key = (drive, es, s, ticks, self._pkey, self.params.R)
+        ent = self._flows.get(key)
+        if ent is None:
+            ent = self._piece_flow_new(drive, es, s, ticks)
+            ent += (ent[0].tolist(),)
+            _lru_put(self._flows, key, ent, FLOWS_MAX)
+        return ent
+
+    def _piece_flow_new(self, drive, es, s, ticks):
         p = self.params
         vp, vn, rbr, _ = drive
         rt = p.R + rbr
@@ -57,17 +78,23 @@ class PeriodicDrive:
             es, s = self._select(x, drive)
             if es == 0:
                 return False        # discontinuous conduction: a guard event every period
-            flow, absA, absu, lin = self._piece_flow(drive, es, s, ticks)
-            guards = tuple(self._mode_guards(es, s, drive)) + tuple(bguards)
-            plan_pieces.append((ticks, flow, absA, absu, guards, drive, (es, s), lin))
+            flow, absA, absu, lin, rows = self._piece_flow(drive, es, s, ticks)
+            plan_pieces.append((ticks, flow, absA, absu, drive, (es, s), lin))
             modes.append((es, s))
-            x = periodmap.apply(flow, x)
-        key = (P, tuple((o, d, g) for o, d, g in pieces), j, tuple(modes), self._pkey, self.params.R)
-        plan = self._plans.get(key)
+            x = periodmap.apply_rows(rows, x)
+        key = (P, pieces, j, tuple(modes), self._pkey, self.params.R)
+        plans = self._plans
+        plan = plans.pop(key, None)
         if plan is None:
-            if len(self._plans) > 64:
-                self._plans.clear()
-            plan = self._plans[key] = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
+            for q, pc in enumerate(plan_pieces):     # the guards only when the plan is new
+                ticks, flow, absA, absu, drive, mode, lin = pc
+                bguards = pieces[(j + q) % npc][2]
+                plan_pieces[q] = (ticks, flow, absA, absu,
+                                  tuple(self._mode_guards(*mode, drive)) + tuple(bguards), drive, mode, lin)
+            plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
+            _lru_put(plans, key, plan, PLANS_MAX)
+        else:
+            plans[key] = plan      # most recently used last
         extra = []
         for prov in self._providers:
             if prov is not self._driver and not getattr(prov, "passive_guards", False):
