@@ -56,6 +56,7 @@ def run(engine, segs, n_end, motor_kw=None, bridge_kw=None, samples=400, enc=Tru
     k.run_until(n_end)
     out["trips"] = br.ocd_trips
     out["peak"] = m.peak_current
+    out["segments"] = m.segments
     out["final"] = (m.current, m.speed, m.angle)
     return out
 

@@ -12,7 +12,9 @@ once:
 * inside a piece of τ seconds starting at x, ``|x(t)|`` is bounded component-wise by
   ``x̄ = (I − τ|A|)⁻¹(|x| + τ|u|)`` and so ``|ẋ| ≤ D = |A|·x̄ + |u|``; a guard h = c·x + c0 that is
   positive at both ends with ``h_start + h_end > τ·|c|·D`` cannot reach zero inside (a Lipschitz
-  bound), with a safety margin for float rounding.
+  bound), with a safety margin for float rounding;
+* in a stuck piece (ω held) the current is a single exponential, so a guard without a θ term is
+  monotone there and positive ends suffice.
 
 The first period in which any guard *may* fire ends the chunk: the motor advances to its start
 with the period map's power and runs that period piece by piece, exactly as the edge-by-edge engine
@@ -96,7 +98,7 @@ class PeriodPlan:
             if len(self._screens) > 16:
                 self._screens.clear()
             arrays = self._screens[extra_guards] = self._guard_arrays(extra_guards)
-        G, aGd, aGth, aGx, aG0 = arrays
+        G, aGd, aGth, aGx, aG0, mono = arrays
         npc = len(self.pieces)
         # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
         Xn = X[:n]
@@ -111,6 +113,8 @@ class PeriodPlan:
         hs = S @ G                                       # (pieces, periods, guards)
         he = E @ G
         lip = self._tau * (D @ aGd + xb[:, :, 1:2] * aGth)
+        if mono is not None:
+            lip *= mono
         scale = (np.abs(S[:, :, :3]) @ aGx + aG0) * MARGIN
         bad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=(0, 2))
         k = int(np.argmax(bad)) if bad.any() else n
@@ -128,7 +132,15 @@ class PeriodPlan:
         aG = np.abs(G)                                   # (pieces, guards, 4)
         Gt = G.transpose(0, 2, 1)
         aGt = aG.transpose(0, 2, 1)
-        return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4]
+        # In a stuck piece (s = 0) the current is one exponential, i(t) = i_ss + (i0 − i_ss)·e^{λt}, and
+        # ω is held: a guard without a θ term is monotone in t there, so its ends decide it and the
+        # Lipschitz term is dropped (mono 0). A shaft held at the breakaway threshold by a position
+        # loop sits 1-3 % of the threshold below it, well inside the bound's slack of one piece.
+        stuck = np.array([pc[6][1] == 0 for pc in self.pieces])
+        mono = None
+        if stuck.any():
+            mono = np.where(stuck[:, None] & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
+        return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4], mono
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""

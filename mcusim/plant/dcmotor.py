@@ -44,6 +44,7 @@ kernel included, for 20 kHz drive/brake PWM with an encoder attached (0.5 s simu
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, fields, replace
 
 from ..errors import ConfigError
@@ -185,8 +186,8 @@ class DcMotor(PeriodicDrive):
         self._fast = bool(getattr(kernel, "fast", False))
         self._eig_cache = {}       # per (R_total, L, K, J_eq, b): kept when only an input changes
         self._full_cache = {}
-        self._plans = {}           # fast engine: PeriodPlan per (schedule, first piece, modes, params)
-        self._flows = {}           # fast engine: a piece's delta map per (drive, mode, ticks, params)
+        self._plans = OrderedDict()  # fast engine: PeriodPlan per (schedule, first piece, modes, params)
+        self._flows = OrderedDict()  # fast engine: a piece's delta map per (drive, mode, ticks, params)
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
         self._stale = False        # fast engine: inputs changed at this tick, rebuild due

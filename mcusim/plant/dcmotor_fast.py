@@ -11,6 +11,8 @@ change nothing the motor sees) are located inside a chunk or a segment without e
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from ..engine import periodmap, served
@@ -24,13 +26,13 @@ from . import pwl
 CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
 # cached period plans and piece flows per motor, least recently used dropped first (a plan's power
 # table is up to CHUNK_MAX + 1 4×4 maps, 66 kB: the bound keeps memory flat in run length)
-PLANS_MAX, FLOWS_MAX = 64, 512
+PLANS_MAX, FLOWS_MAX = 256, 512
 
 
-def _lru_put(cache: dict, key, value, limit: int) -> None:
-    """Insert into a dict used as an LRU cache (insertion order = use order)."""
+def _lru_put(cache: OrderedDict, key, value, limit: int) -> None:
+    """Insert into an LRU cache (order = use order), dropping the least recently used."""
     if len(cache) >= limit:
-        del cache[next(iter(cache))]
+        cache.popitem(last=False)
     cache[key] = value
 
 
@@ -42,11 +44,14 @@ class PeriodicDrive:
         cached per (drive, mode, ticks, parameters): a PID loop that moves the duty by a count or
         two keeps meeting the same pieces."""
         key = (drive, es, s, ticks, self._pkey, self.params.R)
-        ent = self._flows.get(key)
+        flows = self._flows
+        ent = flows.get(key)
         if ent is None:
             ent = self._piece_flow_new(drive, es, s, ticks)
             ent += (ent[0].tolist(),)
-            _lru_put(self._flows, key, ent, FLOWS_MAX)
+            _lru_put(flows, key, ent, FLOWS_MAX)
+        else:
+            flows.move_to_end(key)
         return ent
 
     def _piece_flow_new(self, drive, es, s, ticks):
@@ -84,7 +89,7 @@ class PeriodicDrive:
             x = periodmap.apply_rows(rows, x)
         key = (P, pieces, j, tuple(modes), self._pkey, self.params.R)
         plans = self._plans
-        plan = plans.pop(key, None)
+        plan = plans.get(key)
         if plan is None:
             for q, pc in enumerate(plan_pieces):     # the guards only when the plan is new
                 ticks, flow, absA, absu, drive, mode, lin = pc
@@ -94,7 +99,7 @@ class PeriodicDrive:
             plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
             _lru_put(plans, key, plan, PLANS_MAX)
         else:
-            plans[key] = plan      # most recently used last
+            plans.move_to_end(key)
         extra = []
         for prov in self._providers:
             if prov is not self._driver and not getattr(prov, "passive_guards", False):

@@ -133,6 +133,7 @@ class L6206Bridge(MosfetBridge):
             return None
         anchor, P, pieces = found
         self._periodic = True
+        self._shape = self._input_shape()
         I = self.params.I_ocd
         ocd = ((-1.0, 0.0, 0.0, I, True, self, "ocd"), (1.0, 0.0, 0.0, I, True, self, "ocd"))
         return (anchor, P, tuple((o, self.drive_for(lg), ocd if "H" in lg else ()) for o, lg in pieces))
@@ -184,7 +185,17 @@ class L6206Bridge(MosfetBridge):
                 n.wave is not None for n in (self.in1, self.in2, self.en)):
             self._next_edge()
 
+    def _input_shape(self):
+        """What the motor's drive schedule depends on: each input's waveform shape (phase within
+        the period, period, width; not where its owner already knows it ends) or level."""
+        return tuple((w.rise % w.period, w.period, w.width) if (w := n.wave) is not None else n.level
+                     for n in (self.in1, self.in2, self.en))
+
     def _on_pin(self, net):
+        if self._periodic and not self.ocd_active and self._input_shape() == self._shape:
+            # a waveform republished with the same shape (the timer learned it ends at the next
+            # update event, where a preload waits): the schedule the motor follows is unchanged
+            return
         if self.kernel.fast and (self._periodic or self._edge_ev is not None or any(
                 n.wave is not None for n in (self.in1, self.in2, self.en))):
             self._legs_seen = None
