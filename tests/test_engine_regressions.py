@@ -150,3 +150,46 @@ def test_a_shaft_held_just_below_breakaway_runs_in_whole_period_chunks_as_the_re
     assert d is None, d
     assert a["state"][-1][2] == 0.0 and b["state"][-1][2] == 0.0     # still stuck at the end
     assert b["segments"] < 50, b["segments"]
+
+
+def test_a_state_read_in_the_previous_chunk_after_set_params_uses_the_parameters_it_ran_with():
+    """``state_at`` of a tick in the previous segment (the BTS7960's IS output reads one) gives the
+    state the motor had there, whatever changed since: a fast-engine chunk builds its pieces'
+    closed forms when they are read, and once built them with the parameters of the read, not those
+    the chunk ran with. (The reference engine's previous segment is the last PWM piece only, so the
+    tick, in an earlier period, is the fast engine's to answer.)"""
+    from mcusim.engine.waveform import Waveform
+    from mcusim.kernel import Kernel
+    from mcusim.plant.dcmotor import DcMotor
+    from mcusim.plant.l6206 import L6206Bridge
+    from mcusim.signals import Net
+    from mcusim.time import TimeBase
+    MS = 216000
+    k = Kernel(TimeBase([216_000_000]), "fast")
+    nets = {n: Net(n) for n in ("in1", "in2", "en")}
+    for n in nets.values():
+        n.set("drv", 0)
+    m = DcMotor(k, "m")
+    L6206Bridge(k, m, nets["in1"], nets["in2"], nets["en"], "br")
+    nets["en"].set("drv", 1)
+    nets["in1"].set_wave("drv", Waveform(k, 0, 4320, 2000))
+    t1 = 5 * MS + 1000
+    k.run_until(t1)
+    probe = t1 - 3000      # the off-piece of the period before
+    assert m._traj.kind == "chunk"
+    before = m.state_at(probe)
+    m.set_params(L=3e-3, K=0.02)
+    assert m.state_at(probe) == before
+
+
+def test_a_stuck_shaft_on_pieces_longer_than_the_electrical_time_constant_runs_in_chunks():
+    """With 0.2 mH and 10 kHz PWM a piece lasts longer than L/R (τ·|λ| ≥ 1), where the derivative
+    bound of the screening has no fixed point. A stuck piece needs none (its |i| peaks at an end,
+    ω is held), so a shaft held by stiction there still runs in whole-period chunks (it ran piece
+    by piece, ~600 segments in 20 ms), and agrees with the reference engine."""
+    MS = 216000
+    segs = {"in1": [(0, (0, 21600, 600))], "in2": [(0, 0)], "en": [(0, 1)]}
+    d, a, b = compare_plant(segs, 20 * MS, motor_kw={"L": 2e-4}, samples=400)
+    assert d is None, d
+    assert a["state"][-1][2] == 0.0 and b["state"][-1][2] == 0.0     # stuck throughout
+    assert b["segments"] < 50, b["segments"]

@@ -14,7 +14,8 @@ once:
   positive at both ends with ``h_start + h_end > τ·|c|·D`` cannot reach zero inside (a Lipschitz
   bound), with a safety margin for float rounding;
 * in a stuck piece (ω held) the current is a single exponential, so a guard without a θ term is
-  monotone there and positive ends suffice.
+  monotone there and positive ends suffice; |i| and |ω| there are bounded by their values at the
+  piece's ends, whatever its length.
 
 The first period in which any guard *may* fire ends the chunk: the motor advances to its start
 with the period map's power and runs that period piece by piece, exactly as the edge-by-edge engine
@@ -62,15 +63,18 @@ class PeriodPlan:
         for pc in pieces:
             self.starts.append(off)
             off += pc[0]
-        # x̄ = W·|x| + w per piece (None when τ|A| is not a contraction: no bound, never chunk)
+        # x̄ = W·|x| + w per piece (None when τ|A| is not a contraction: no bound, never chunk). A
+        # stuck piece needs none: its |i| is largest at an end and ω is held (first_flag)
         self.bounds = []
-        for ticks, _, absA, absu, *_ in pieces:
+        self._stuck = np.array([pc[6][1] == 0 for pc in pieces])[:, None, None]
+        for ticks, _, absA, absu, _, _, mode, _ in pieces:
             tau = ticks * inv_hz
             (a00, a01), (a10, a11) = absA.tolist()
             m00, m01, m10, m11 = 1.0 - tau * a00, -tau * a01, -tau * a10, 1.0 - tau * a11
             det = m00 * m11 - m01 * m10
             if det <= 0 or tau * (a00 + a11) >= 1.0:
-                self.bounds.append(None)
+                self.bounds.append(None if mode[1] != 0 else
+                                   (np.zeros((2, 2)), np.zeros(2), tau, absA.T, absu))
                 continue
             # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
             W = np.array(((m11 / det, -m01 / det), (-m10 / det, m00 / det)))
@@ -109,6 +113,9 @@ class PeriodPlan:
         St[npc] = X[1:]
         S, E = St[:-1], St[1:]                  # (pieces, periods, 4) at each piece's start and end
         xb = np.abs(S[:, :, :2]) @ self._Wt + self._w   # bound of |i|, |ω| inside the piece
+        if self._stuck.any():
+            # a stuck piece: i is one exponential (monotone), ω is held: |i|, |ω| peak at an end
+            xb = np.where(self._stuck, np.maximum(np.abs(S[:, :, :2]), np.abs(E[:, :, :2])), xb)
         D = xb @ self._At + self._u                      # bound of |di/dt|, |dω/dt|
         hs = S @ G                                       # (pieces, periods, guards)
         he = E @ G

@@ -454,36 +454,50 @@ class DcMotor(PeriodicDrive):
                     break
         return es, s
 
-    def _build(self, x0, drive, es, s):
-        p = self.params
+    def _build(self, x0, drive, es, s, ps=None):
+        """The closed form from ``x0`` under ``drive`` in mode (es, s), with the parameters ``ps``
+        (:meth:`_param_set`; None: the current ones)."""
+        p, J, tlp, tln, _ = ps or self._param_set()
         vp, vn, rbr, _ = drive
         if es == 0:
             if s == 0:
                 return pwl.static(x0)
-            T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-            return pwl.first_order_x2(-p.b / self._J, -T / self._J, x0)
+            T = p.tau_c * s + (tlp if s > 0 else tln)
+            return pwl.first_order_x2(-p.b / J, -T / J, x0)
         v0 = vn if es == -1 else vp
         rt = p.R + rbr
         if s == 0:
             return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
-        T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
-        return pwl.affine2_from(self._full_system(rt, v0, T)[3], x0)
+        T = p.tau_c * s + (tlp if s > 0 else tln)
+        return pwl.affine2_from(self._full_system(rt, v0, T, ps)[3], x0)
 
-    def _full_system(self, rt, v0, T):
+    def _param_set(self):
+        """(params, J_eq, reflected load +, reflected load −, cache key) as they are now."""
+        return self.params, self._J, self._tlp, self._tln, self._pkey
+
+    def _piece_builder(self):
+        """Fast engine: the closed-form builder of a chunk's pieces, bound to the parameters of now.
+        A chunk builds its pieces when they are read, and a read of a tick in the previous segment
+        (``state_at``) may come after a ``set_params``: it must see the parameters that segment ran
+        with, as the reference engine's closed form does."""
+        ps = self._param_set()
+        return lambda xs, drive, mode: self._build(xs, drive, *mode, ps)
+
+    def _full_system(self, rt, v0, T, ps=None):
         """(eig, A, u, affine2_system) of the full (i, ω) system for loop resistance rt, voltage v0,
-        torque term T."""
-        p = self.params
-        key = (rt, v0, T, self._pkey)
+        torque term T, with the parameters ``ps`` (None: the current ones)."""
+        p, J, _, _, pkey = ps or self._param_set()
+        key = (rt, v0, T, pkey)
         ent = self._full_cache.get(key)
         if ent is None:
-            ekey = (rt, p.L, p.K, self._J, p.b)
-            A = (-rt / p.L, -p.K / p.L, p.K / self._J, -p.b / self._J)
+            ekey = (rt, p.L, p.K, J, p.b)
+            A = (-rt / p.L, -p.K / p.L, p.K / J, -p.b / J)
             eig = self._eig_cache.get(ekey)
             if eig is None:
                 eig = self._eig_cache[ekey] = pwl.eig2(*A)
             if len(self._full_cache) > 256:
                 self._full_cache.clear()
-            u = (v0 / p.L, -T / self._J)
+            u = (v0 / p.L, -T / J)
             ent = self._full_cache[key] = (eig, A, u, pwl.affine2_system(eig, A, u))
         return ent
 

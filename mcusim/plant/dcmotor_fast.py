@@ -26,7 +26,7 @@ from . import pwl
 CHUNK_LO, CHUNK_MIN, CHUNK_MAX = 4, 16, 512
 # cached period plans and piece flows per motor, least recently used dropped first (a plan's power
 # table is up to CHUNK_MAX + 1 4×4 maps, 66 kB: the bound keeps memory flat in run length)
-PLANS_MAX, FLOWS_MAX = 256, 512
+PLANS_MAX, FLOWS_MAX = 64, 512
 
 
 def _lru_put(cache: OrderedDict, key, value, limit: int) -> None:
@@ -113,7 +113,7 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, lambda xs, drive, mode: self._build(xs, drive, *mode), X, ib)
+        self._traj = ChunkTraj(plan, x0, self._piece_builder(), X, ib)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
