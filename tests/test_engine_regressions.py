@@ -6,6 +6,13 @@ from diff_net import compare as compare_net
 from diff_plant import compare as compare_plant
 from diff_tim import compare as compare_tim
 
+from mcusim.engine.waveform import Waveform
+from mcusim.kernel import Kernel
+from mcusim.plant.dcmotor import DcMotor
+from mcusim.plant.l6206 import L6206Bridge
+from mcusim.signals import Net
+from mcusim.time import TimeBase
+
 
 def test_down_counting_with_arr_lowered_below_cnt_runs_to_zero_as_the_reference():
     init = [("CR1", 16), ("ARR", 9), ("CCR1", 1), ("CCMR1", 0x60), ("CCER", 1), ("EGR", 1), ("CR1", 17)]
@@ -88,32 +95,32 @@ def test_a_stiction_change_mid_run_is_seen_by_the_cached_period_plans():
     MS = 216000
     segs = {"in1": [(0, (0, 4320, 259))], "in2": [(0, 0)], "en": [(0, 1)]}
     changes = [(MS // 2 + 1234, {"tau_s": 2.6e-3})]
-    d, a, b = compare_plant(segs, 10 * MS, samples=1000, param_changes=changes)
+    d, a, _b = compare_plant(segs, 10 * MS, samples=1000, param_changes=changes)
     assert d is None, d
     moved = [s for s in a["state"] if s[0] < 3 * MS and s[2] > 0.0]
     assert moved, "the shaft should break away once tau_s is lowered"
+
+
+def _l6206_rig(engine):
+    """(kernel, nets in1/in2/en, motor): a default motor on an L6206 bridge, enabled, inputs low."""
+    k = Kernel(TimeBase([216_000_000]), engine)
+    nets = {n: Net(n) for n in ("in1", "in2", "en")}
+    for n in nets.values():
+        n.set("drv", 0)
+    m = DcMotor(k, "m")
+    L6206Bridge(k, m, nets["in1"], nets["in2"], nets["en"], "br")
+    nets["en"].set("drv", 1)
+    return k, nets, m
 
 
 def test_a_waveform_republished_with_the_same_shape_leaves_the_motor_chunk_as_it_is():
     """A timer whose preload waits for the next update event republishes its PWM waveform with the
     tick where it ends; the bridge's drive is the same shape, so the motor keeps its chunk (no new
     segment) and its state is the one the reference engine gives."""
-    from mcusim.engine.waveform import Waveform
-    from mcusim.kernel import Kernel
-    from mcusim.plant.dcmotor import DcMotor
-    from mcusim.plant.l6206 import L6206Bridge
-    from mcusim.signals import Net
-    from mcusim.time import TimeBase
     MS = 216000
     states = {}
     for engine in ("reference", "fast"):
-        k = Kernel(TimeBase([216_000_000]), engine)
-        nets = {n: Net(n) for n in ("in1", "in2", "en")}
-        for n in nets.values():
-            n.set("drv", 0)
-        m = DcMotor(k, "m")
-        L6206Bridge(k, m, nets["in1"], nets["in2"], nets["en"], "br")
-        nets["en"].set("drv", 1)
+        k, nets, m = _l6206_rig(engine)
         if engine == "fast":
             nets["in1"].set_wave("drv", Waveform(k, 0, 4320, 2000))
             k.run_until(5 * MS + 17)
@@ -158,20 +165,8 @@ def test_a_state_read_in_the_previous_chunk_after_set_params_uses_the_parameters
     closed forms when they are read, and once built them with the parameters of the read, not those
     the chunk ran with. (The reference engine's previous segment is the last PWM piece only, so the
     tick, in an earlier period, is the fast engine's to answer.)"""
-    from mcusim.engine.waveform import Waveform
-    from mcusim.kernel import Kernel
-    from mcusim.plant.dcmotor import DcMotor
-    from mcusim.plant.l6206 import L6206Bridge
-    from mcusim.signals import Net
-    from mcusim.time import TimeBase
     MS = 216000
-    k = Kernel(TimeBase([216_000_000]), "fast")
-    nets = {n: Net(n) for n in ("in1", "in2", "en")}
-    for n in nets.values():
-        n.set("drv", 0)
-    m = DcMotor(k, "m")
-    L6206Bridge(k, m, nets["in1"], nets["in2"], nets["en"], "br")
-    nets["en"].set("drv", 1)
+    k, nets, m = _l6206_rig("fast")
     nets["in1"].set_wave("drv", Waveform(k, 0, 4320, 2000))
     t1 = 5 * MS + 1000
     k.run_until(t1)
