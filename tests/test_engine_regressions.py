@@ -188,3 +188,26 @@ def test_a_stuck_shaft_on_pieces_longer_than_the_electrical_time_constant_runs_i
     assert d is None, d
     assert a["state"][-1][2] == 0.0 and b["state"][-1][2] == 0.0     # stuck throughout
     assert b["segments"] < 50, b["segments"]
+
+
+def test_a_constant_pwm_output_that_becomes_a_waveform_at_a_wrap_changes_once():
+    """CCR1 goes from 0 (PWM mode 1: always inactive) to 30 through its preload: at the update
+    event the output becomes a waveform. Its listeners (an H-bridge, which rebuilds the motor's
+    segment at every change) are told once, with the waveform, not first of a constant high level
+    and then of the waveform at the same tick; the edges are the reference engine's."""
+    from tim_oracle import Rig
+    init = [("ARR", 99), ("CCR1", 0), ("CCMR1", 0x68), ("CCER", 1), ("EGR", 1), ("CR1", 1)]
+    d, _, _ = compare_tim("TIM3", init, [(150, "w", "CCR1", 30)], 600)
+    assert d is None, d
+    rig = Rig("TIM3", 108, engine="fast")
+    k = rig.kernel
+    told = []
+    rig.tim.oc[1].listen(lambda p: told.append((k.now, p.value, p.wave)), waves=True)
+    for reg, v in init:
+        rig.w(reg, v)
+    k.run_until(k.now + 150 * rig.P)
+    told.clear()
+    rig.w("CCR1", 30)
+    k.run_until(k.now + 100 * rig.P)
+    assert len(told) == 1, told
+    assert told[0][1] == 1 and told[0][2] is not None

@@ -427,7 +427,9 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
             if port.wave is not None:
                 if not (keep_waves and m >= PWM1 and self._en[ch]):
                     port.set(v)
-            elif port.value != v:
+            elif port.value != v and not (keep_waves and self._wave_coming(ch)):
+                # (a constant output that becomes a waveform now goes to it in one step, one
+                # change for whoever listens: _publish_waves follows)
                 port.set(v)
 
     def _flush_lazy(self) -> None:

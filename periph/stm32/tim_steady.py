@@ -58,23 +58,27 @@ class SteadyStage:
     # --- the waveforms ------------------------------------------------------------------------
     def _channel_wave(self, ch: int, t_wrap: int):
         """The output of channel ``ch`` as a Waveform, or None when it is a constant level."""
-        m = self._mode[ch]
-        if not self._en[ch] or m not in (_PWM1, _PWM2):
+        if not self._wave_coming(ch):
             return None
+        m = self._mode[ch]
         arr, c, tick = self._arr, self._ccr[ch], self._tick
         P = (arr + 1) * tick
         if self._up:
-            rise, width = t_wrap, min(c, arr + 1) * tick
+            rise, width = t_wrap, c * tick
         else:
-            if c >= arr:
-                return None
             rise, width = t_wrap + (arr - c) * tick, (c + 1) * tick
         if (m == _PWM2) ^ bool(self._pol[ch]):
             rise, width = rise + width, P - width
-        if width <= 0 or width >= P:
-            return None
         # a wrap with an event (a preload, UIE...) may change the waveform: it ends there
         return Waveform(self.kernel, rise, P, width, t_wrap if self._ev_wrap is not None else None)
+
+    def _wave_coming(self, ch: int) -> bool:
+        """Channel ``ch`` is a PWM output whose level changes within a period: edge-aligned up,
+        0 < CCRx ≤ ARR (0 is always inactive, above ARR always active); down, CCRx < ARR."""
+        if not self._en[ch] or self._mode[ch] not in (_PWM1, _PWM2):
+            return False
+        c = self._ccr[ch]
+        return 0 < c <= self._arr if self._up else c < self._arr
 
     def _publish_waves(self) -> None:
         self._wave_pol = list(self._pol)    # OCx = OCxREF xor CCxP as published
