@@ -25,6 +25,7 @@ optimistic: a flagged period that does not fire costs only speed.
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -200,16 +201,10 @@ class ChunkTraj:
             h = v * ct + c0
             return h < 0.0 if strict else h <= 0.0
         # θ is monotone over the period starts, so "fired" is too: the first fired one by bisection
-        lo, hi = 0, len(th) - 1
+        hi = len(th) - 1
         if not fired(th[hi]):
             return None
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if fired(th[mid]):
-                hi = mid
-            else:
-                lo = mid + 1
-        kb = lo
+        kb = bisect.bisect_left(th, True, 0, hi, key=fired)
         plan = self.plan
         P = plan.P
         # θ is monotone: the crossing lies in the period ending at the first fired boundary kb
