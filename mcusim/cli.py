@@ -204,9 +204,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def _print_summary(s: dict) -> None:
     rtf = s["realtime_factor"]
+    eng = s.get("engine", {}).get("name")
+    eng = f", {eng} engine" if eng else ""
     print(f"{s['board']}: simulated {s['simulated_s']:.6f} s in {s['wall_s']:.2f} s wall "
-          f"({rtf:.3f}x real time), {s['events']:,} events" if rtf else
-          f"{s['board']}: simulated {s['simulated_s']:.6f} s, {s['events']:,} events")
+          f"({rtf:.3f}x real time{eng}), {s['events']:,} events" if rtf else
+          f"{s['board']}: simulated {s['simulated_s']:.6f} s{eng}, {s['events']:,} events")
     if s["motors"]:
         w = max(10, *(len(n) + 2 for n in s["motors"]))
         print(f"{'motor':<{w}}{'angle (rad)':>14}{'setpoint (rad)':>16}{'speed (rpm)':>14}{'peak current (A)':>18}")

@@ -13,8 +13,8 @@ from .system import build_system, close_firmware_tasks, is_system
 
 class Simulation:
     def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False,
-                 engine: str = DEFAULT_ENGINE):
-        check_engine(engine)
+                 engine: str | None = DEFAULT_ENGINE):
+        engine = check_engine(DEFAULT_ENGINE if engine is None else engine)
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
         if is_system(profile) and not isinstance(firmware, bool):

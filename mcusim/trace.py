@@ -16,6 +16,9 @@ shared by the MCUs of a system is traced once) gets wires ``<bus>_SCL``/``<bus>_
 LPC43xx USART a wire ``<USART>_TXD`` in its MCU's scope, drawn bit by bit from the byte-level models
 by :mod:`mcusim.tracebus` (exact edges; see there for the timing and rounding).
 
+Simultaneous changes: the changes of one timestamp are written in the order the variables were
+declared, whatever order the models reported them in, so the two engines write the same bytes.
+
 Reorder buffer: those buses report a byte when it ends, so its edges lie in the past. Every value
 change therefore goes through a buffer ordered by (tick, arrival) and is written to the VCD once it
 is older than ``now - lag``; ``lag`` (base ticks) is the largest the bus tracers asked for (2 ms
@@ -53,6 +56,9 @@ class VcdTrace:
         # (group, full hierarchical name, VCD type) of every variable, in declaration order; the
         # group is a board scope, a bus scope, "irq" or "plant" (see write_gtkw)
         self.signals: list[tuple[str, str, str]] = []
+        self._order: dict = {}      # variable -> its index in signals (the write order in a timestamp)
+        self._pend: list = []       # the changes of timestamp _pend_ps not written yet (see _write)
+        self._pend_ps = None
         self._file = open(path, "w")  # noqa: SIM115 (open for the trace's lifetime; close() closes it)
         self.w = VCDWriter(self._file, timescale="1 ps", date="", comment=f"mcusim {sim.board_name}")
         board = sim.board_name
@@ -108,8 +114,27 @@ class VcdTrace:
 
     def _var(self, group: str, scope: str, name: str, var_type: str, **kw):
         var = self.w.register_var(scope, name, var_type, **kw)
+        self._order[var] = len(self.signals)
         self.signals.append((group, f"{scope}.{name}", var_type))
         return var
+
+    def _write(self, var, ps: int, value) -> None:
+        """Write a change at ``ps``. The changes of one timestamp are written in the order the
+        variables were declared (each variable's own changes in the order they came), so a VCD
+        does not depend on the order in which models happened to report simultaneous changes:
+        the two engines (docs/engine.md) write the same bytes for the same edges."""
+        if ps != self._pend_ps:
+            self._write_pending()
+            self._pend_ps = ps
+        self._pend.append((self._order[var], len(self._pend), var, value))
+
+    def _write_pending(self) -> None:
+        if self._pend:
+            ps, change = self._pend_ps, self.w.change
+            self._pend.sort(key=lambda e: (e[0], e[1]))
+            for _, _, var, value in self._pend:
+                change(var, ps, value)
+            self._pend.clear()
 
     def _wire(self, scope: str, name: str, net, group: str | None = None) -> None:
         var = self._var(scope if group is None else group, scope, name, "wire", size=1, init=net.level)
@@ -147,7 +172,7 @@ class VcdTrace:
                 heapq.heappush(self._heap, (tick, next(self._seq), var, lv))
         else:
             for tick, var, lv in edges:
-                self.w.change(var, self._ps(tick), lv)
+                self._write(var, self._ps(tick), lv)
 
     # --- reorder buffer ---------------------------------------------------------------------------
     def add_wire(self, scope: str, name: str, init: int = 0):
@@ -180,7 +205,7 @@ class VcdTrace:
             heapq.heappush(self._heap, (now, next(self._seq), var, value))
             self._drain(now - self.lag)
         else:
-            self.w.change(var, self._ps(now), value)
+            self._write(var, self._ps(now), value)
 
     def _drain(self, limit: int) -> None:
         """Write every queued change at or before ``limit``; nothing older may be queued after."""
@@ -192,7 +217,7 @@ class VcdTrace:
         heap = self._heap
         while heap and heap[0][0] <= limit:
             tick, _, var, value = heapq.heappop(heap)
-            self.w.change(var, self._ps(tick), value)
+            self._write(var, self._ps(tick), value)
 
     def _member_vars(self, scope: str, member: dict) -> None:
         mcu, profile = member["mcu"], member["profile"]
@@ -249,9 +274,11 @@ class VcdTrace:
         """Write what can no longer change (older than ``now - lag``) and stamp the VCD there."""
         if not self.lag:
             self._expand_waves(now, inclusive=True)
+            self._write_pending()
             self.w.flush(self._ps(now))
             return
         self._drain(now - self.lag)
+        self._write_pending()
         if self._mark > self._start:    # (not before: changes at the start still go in $dumpvars)
             self.w.flush(self._ps(self._mark))
 
@@ -264,6 +291,7 @@ class VcdTrace:
                 self._heap.clear()
             else:
                 self._expand_waves(now, inclusive=True)
+            self._write_pending()
             self.w.close(self._ps(now))
             self._file.close()
 

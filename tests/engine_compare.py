@@ -69,6 +69,22 @@ def read_vcd(path: Path):
     return changes, types
 
 
+def scalar_lines(path: Path) -> list[tuple[str, list[str]]]:
+    """The VCD's digital part as written: (timestamp line, its scalar and vector change lines) for
+    every timestamp that has any, in file order (real-valued lines left out)."""
+    out, t, cur = [], None, None
+    with open(path) as f:
+        for line in f:
+            if line.startswith("#"):
+                t, cur = line.strip(), None
+            elif t is not None and line[:1] not in ("r", "R", "$", "\n") and line.strip():
+                if cur is None:
+                    cur = (t, [])
+                    out.append(cur)
+                cur[1].append(line.rstrip("\n"))
+    return out
+
+
 def _close(a: float, b: float, scale: float) -> bool:
     if math.isnan(a) or math.isnan(b):
         return math.isnan(a) and math.isnan(b)
@@ -191,6 +207,12 @@ def differences(tmp_path: Path, argv: list[str]) -> list[str]:
             pb = b[first] if first < len(b) else "end"
             problems.append(f"VCD {name}: change #{first} differs: reference {pa}, fast {pb} "
                             f"({len(a)} and {len(b)} changes)")
+    if not problems:    # the same changes: then also written the same, byte for byte
+        ba, bb = scalar_lines(ref / "t.vcd"), scalar_lines(fast / "t.vcd")
+        if ba != bb:
+            i = next((i for i, (p, q) in enumerate(zip(ba, bb)) if p != q), min(len(ba), len(bb)))
+            problems.append(f"VCD digital lines differ at timestamp #{i}: reference "
+                            f"{ba[i] if i < len(ba) else 'end'}, fast {bb[i] if i < len(bb) else 'end'}")
     la = (ref / "t.jsonl").read_text().splitlines()
     lb = (fast / "t.jsonl").read_text().splitlines()
     if la != lb:

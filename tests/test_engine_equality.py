@@ -40,6 +40,13 @@ def test_engines_agree_on_the_nucleo_bench_command(tmp_path):
                       "--set", "/motor2/set_pos=-1.5707963267948966"])
 
 
+def test_engines_write_the_quick_start_vcd_the_same_byte_for_byte(tmp_path):
+    """Both motors' PWM edges fall on one tick from 0.18 s on; the fast engine expands them from
+    their waveforms in another order than the reference engine toggles them. The VCD writes a
+    timestamp's changes in declaration order, so the digital lines are the same bytes."""
+    _agree(tmp_path, ["nucleo-f746", "--duration", "0.5s"])
+
+
 @pytest.mark.parametrize("board,duration", [("pro-mini", "50ms"), ("elementall", "20ms")])
 def test_engines_agree_on_other_boards(tmp_path, board, duration):
     _agree(tmp_path, [board, "--duration", duration])
@@ -169,3 +176,11 @@ def test_engines_agree_on_generated_rover_runs(tmp_path_factory, lin, ang, fault
         body += f'\n[[at]]\ntime = "{t}ms"\n{line}\n'
     sc.write_text(body)
     _agree(sc.parent, ["elementall", "--scenario", str(sc)])
+
+
+def test_load_with_engine_none_runs_the_default_engine():
+    import mcusim
+    from mcusim.engine import DEFAULT_ENGINE
+    sim = mcusim.load("nucleo-f746", engine=None)
+    sim.run(seconds=0.001)
+    assert sim.summary()["engine"]["name"] == DEFAULT_ENGINE == "fast"
