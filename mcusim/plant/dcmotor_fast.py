@@ -121,12 +121,13 @@ class PeriodicDrive:
 
     def _chunk_lived(self, tr, n: int) -> None:
         """The chunk ``tr`` ends after ``n`` ticks. One that an input change cut short after m
-        periods moves the next horizon towards 2·(m + 1), halving it at most per cut (one early
+        periods moves the next horizon towards m + 2, halving it at most per cut (one early
         cut is no pattern): screening periods that inputs changing at a steady rate (the rover's
-        1 ms battery and body steps) never let run is wasted work."""
+        1 ms battery and body steps, the nucleo's PID writing a new duty every 250 PWM periods)
+        never let run is wasted work, and the screening's cost grows with the horizon."""
         P = tr.plan.P
         if n < tr.periods * P:
-            self._chunk_n = max(min(2 * (n // P + 1), CHUNK_MAX), self._chunk_n // 2, CHUNK_LO)
+            self._chunk_n = max(min(n // P + 2, CHUNK_MAX), self._chunk_n // 2, CHUNK_LO)
 
     def _passive_search(self, after: int):
         """(search, end): ``search(g)`` is the first tick offset in (``after``, ``end``] at which the
