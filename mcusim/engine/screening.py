@@ -64,29 +64,35 @@ class PeriodPlan:
         for pc in pieces:
             self.starts.append(off)
             off += pc[0]
-        # x̄ = W·|x| + w per piece (None when τ|A| is not a contraction: no bound, never chunk). A
-        # stuck piece needs none: its |i| is largest at an end and ω is held (first_flag)
-        self.bounds = []
-        self._stuck = np.array([pc[6][1] == 0 for pc in pieces])[:, None, None]
+        # x̄ = W·|x| + w per piece, W = (I − τ|A|)⁻¹ (none when τ|A| is not a contraction: no
+        # bound, never chunk). A stuck piece needs none: its |i| is largest at an end and ω is held
+        # (first_flag). Built as floats, stacked once.
+        Wt, w, taus, At, us = [], [], [], [], []
+        self._bounded = True
         for ticks, _, absA, absu, _, _, mode, _ in pieces:
             tau = ticks * inv_hz
-            (a00, a01), (a10, a11) = absA.tolist()
+            a00, a01, a10, a11 = absA
             m00, m01, m10, m11 = 1.0 - tau * a00, -tau * a01, -tau * a10, 1.0 - tau * a11
             det = m00 * m11 - m01 * m10
             if det <= 0 or tau * (a00 + a11) >= 1.0:
-                self.bounds.append(None if mode[1] != 0 else
-                                   (np.zeros((2, 2)), np.zeros(2), tau, absA.T, absu))
-                continue
-            # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
-            W = np.array(((m11 / det, -m01 / det), (-m10 / det, m00 / det)))
-            self.bounds.append((W.T, W @ (tau * absu), tau, absA.T, absu))
-        # the same per piece, stacked (first_flag screens all pieces of all periods at once)
+                if mode[1] != 0:
+                    self._bounded = False
+                    break
+                W00 = W01 = W10 = W11 = 0.0
+            else:
+                # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
+                W00, W01, W10, W11 = m11 / det, -m01 / det, -m10 / det, m00 / det
+            tu0, tu1 = tau * absu[0], tau * absu[1]
+            Wt.append(((W00, W10), (W01, W11)))
+            w.append(((W00 * tu0 + W01 * tu1, W10 * tu0 + W11 * tu1),))
+            taus.append(((tau,),))
+            At.append(((a00, a10), (a01, a11)))
+            us.append((absu,))
+        self._stuck = np.array([pc[6][1] == 0 for pc in pieces])[:, None, None]
+        if self._bounded:   # per piece, stacked (first_flag screens all pieces of all periods at once)
+            self._Wt, self._w, self._tau = np.array(Wt), np.array(w), np.array(taus)
+            self._At, self._u = np.array(At), np.array(us)
         npc = len(pieces)
-        self._bounded = None not in self.bounds
-        if self._bounded:
-            Wt, w, tau, At, u = (np.stack([b[i] for b in self.bounds]) for i in range(5))
-            self._Wt, self._w, self._tau = Wt, w[:, None, :], tau[:, None, None]
-            self._At, self._u = At, u[:, None, :]
         # Q[1..npc-1] side by side: one product gives every inner piece start
         self._QTcat = np.concatenate([q.T for q in Q[1:npc]], axis=1) if npc > 1 else None
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from collections import OrderedDict
 
-import numpy as np
-
 from ..engine import periodmap, served
 from ..engine.screening import ChunkTraj, PeriodPlan
 from ..kernel import PRIO_HW, PRIO_PLANT
@@ -40,7 +38,8 @@ class PeriodicDrive:
     """Mixin of DcMotor (uses its state: _x0, _t0, _traj, _providers, _driver, params ...)."""
 
     def _piece_flow(self, drive, es, s, ticks):
-        """(flow, |A|, |u|, (a11, a12, u1), flow rows) of one piece of ``ticks`` in mode (es, s),
+        """(flow, |A|, |u|, (a11, a12, u1), flow rows) of one piece of ``ticks`` in mode (es, s)
+        (|A| as the tuple (|a11|, |a12|, |a21|, |a22|), |u| as (|u1|, |u2|)),
         cached per (drive, mode, ticks, parameters): a PID loop that moves the duty by a count or
         two keeps meeting the same pieces."""
         key = (drive, es, s, ticks, self._pkey, self.params.R)
@@ -63,12 +62,12 @@ class PeriodicDrive:
         if s == 0:
             lam = -rt / p.L
             i_ss = v0 / rt
-            return (periodmap.stuck_flow(lam, i_ss, tau), np.array(((abs(lam), 0.0), (0.0, 0.0))),
-                    np.array((abs(lam * i_ss), 0.0)), (lam, 0.0, -lam * i_ss))
+            return (periodmap.stuck_flow(lam, i_ss, tau), (abs(lam), 0.0, 0.0, 0.0),
+                    (abs(lam * i_ss), 0.0), (lam, 0.0, -lam * i_ss))
         T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
         eig, A, u, _ = self._full_system(rt, v0, T)
-        return (periodmap.full_flow(eig, A, u, tau), np.abs(np.array(((A[0], A[1]), (A[2], A[3])))),
-                np.abs(np.array(u)), (A[0], A[1], u[0]))
+        return (periodmap.full_flow(eig, A, u, tau), tuple(abs(a) for a in A),
+                (abs(u[0]), abs(u[1])), (A[0], A[1], u[0]))
 
     def _try_chunk(self, sched, j, x0) -> bool:
         """From the start of piece ``j``: advance whole periods if no guard can fire in them."""
