@@ -217,14 +217,20 @@ def user_duration(value, what: str, *, positive: bool = True, maximum=None, max_
     else:
         text = value.strip()
         if text and text[-1].isdigit() or text.endswith("."):
+            try:
+                zero = float(text) == 0.0
+            except ValueError:
+                zero = False
+            hint = "such as 500ms or 2s" if zero and positive else f"such as {text}s or {text}ms"
             raise ConfigError(f"{what} {_show(value)}: a duration needs a unit (s, ms, us, ns, ps or min), "
-                              f"such as {text}s or {text}ms")
+                              + hint)
         try:
             seconds = parse_duration(text)
         except TimeError as exc:
             raise ConfigError(f"{what}: {exc}") from None
     if seconds < 0 or (positive and seconds == 0):
-        raise ConfigError(f"{what} {fmt_duration(seconds)}: must be {'positive' if positive else 'at least 0s'}")
+        shown = value.strip() if isinstance(value, str) else fmt_duration(seconds)   # as the user wrote it
+        raise ConfigError(f"{what} {shown}: must be {'positive' if positive else 'at least 0s'}")
     if maximum is not None and seconds > maximum:
         raise ConfigError(f"{what} {fmt_duration(seconds)}: longer than the limit of {fmt_duration(maximum)}"
                           + (f" ({max_hint})" if max_hint else ""))

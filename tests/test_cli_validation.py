@@ -195,3 +195,15 @@ def test_an_empty_output_name_and_a_huge_key_are_one_short_line(capsys):
     _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--vcd", ""], "--vcd: an empty file name")
     err = _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--set", "a" * 5000 + "=1"])
     assert len(err) <= 620
+
+
+def test_a_zero_or_unitless_duration_is_named_as_the_user_wrote_it(capsys):
+    """The message quotes what was typed ('0ms', not a rewritten '0s'), and a unitless zero is not
+    told to try '0s or 0ms', which are refused too."""
+    from mcusim.cli import main
+    assert main(["run", "nucleo-f746", "--duration", "0ms"]) == 2
+    err = capsys.readouterr().err
+    assert "0ms: must be positive" in err and "Traceback" not in err
+    assert main(["run", "nucleo-f746", "--duration", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "needs a unit" in err and "0s or 0ms" not in err and "500ms or 2s" in err
