@@ -120,8 +120,11 @@ class PeriodicDrive:
 
     def _chunk_lived(self, tr, n: int) -> None:
         """The chunk ``tr`` ends after ``n`` ticks. One that an input change cut short after m
-        periods moves the next horizon towards m + 2, halving it at most per cut (one early
-        cut is no pattern): screening periods that inputs changing at a steady rate (the rover's
+        periods moves the next horizon down towards m + 2, but not below half the horizon already
+        set for the next chunk: after a chunk screened clean over h periods that is 2·h, so the
+        floor is h itself (one early cut is no pattern, and the slack spares chunks that start
+        late in an input's interval an end at their horizon: a floor of h/2 measured more
+        screenings, not fewer). Screening periods that inputs changing at a steady rate (the rover's
         1 ms battery and body steps, the nucleo's PID writing a new duty every 250 PWM periods)
         never let run is wasted work, and the screening's cost grows with the horizon."""
         P = tr.plan.P
