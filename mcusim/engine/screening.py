@@ -47,8 +47,11 @@ class PeriodPlan:
     ``absA``/``absu`` the absolute values of the piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
     """
 
-    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int):
+    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int, formers=None):
         self.pieces = pieces
+        # per piece, the closed form of the piece from a start state (a pwl.Traj): the motor's
+        # segment builder bound to the piece's drive, mode and the plan's parameters
+        self.formers = formers
         self.P = period_ticks
         self.inv = inv_hz
         # Q[p]: delta map from the period start to the start of piece p; Q[len]: the period's
@@ -167,10 +170,10 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, build_piece, X, ibound=math.inf):
+    def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf):
         self.plan, self.x0 = plan, tuple(x0)
         self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
-        self._build_piece = build_piece      # (x, drive, mode) -> closed-form pwl.Traj
+        self._form = plan.formers            # per piece: start state -> closed-form pwl.Traj
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1
         self._piece_memo = (None, None, None)   # (tick offset of a piece start, its state, closed form)
@@ -254,7 +257,7 @@ class ChunkTraj:
         if memo[0] == ts:
             return memo[1], memo[2]
         xk = self._start(q, p)
-        tr = self._build_piece(xk, plan.pieces[p][5], plan.pieces[p][6])
+        tr = self._form[p](xk)
         self._piece_memo = (ts, xk, tr)
         self._evals = {}
         return xk, tr
@@ -305,11 +308,11 @@ class ChunkTraj:
                 de = a11 * xe[:, 0] + a12 * xe[:, 1] + u1
                 # a stationary point of i inside the piece: di/dt changes sign between its ends, or
                 # (complex eigenvalues) the piece is long enough to hold two of them
-                tr0 = self._build_piece(tuple(float(v) for v in xs[0]), pc[5], pc[6])
+                tr0 = self._form[p](tuple(float(v) for v in xs[0]))
                 span = pc[0] * plan.inv
                 two = tr0.cplx and abs(tr0.lam1.imag) * span >= math.pi
                 for kk in (range(k) if two else np.nonzero(ds * de < 0.0)[0]):
-                    tr = self._build_piece(tuple(float(v) for v in xs[kk]), pc[5], pc[6])
+                    tr = self._form[p](tuple(float(v) for v in xs[kk]))
                     for te in tr.x1_extrema(span):
                         best = max(best, abs(tr.eval(te)[0]))
         r = n - k * plan.P
@@ -320,7 +323,7 @@ class ChunkTraj:
                 if s >= r:
                     break
                 xs = self.at(t + s)
-                tr = self._build_piece(xs, pc[5], pc[6])
+                tr = self._form[p](xs)
                 span = min(pc[0], r - s) * plan.inv
                 best = max(best, abs(xs[0]), abs(tr.eval(span)[0]))
                 for te in tr.x1_extrema(span):

@@ -454,10 +454,10 @@ class DcMotor(PeriodicDrive):
                     break
         return es, s
 
-    def _build(self, x0, drive, es, s, ps=None):
-        """The closed form from ``x0`` under ``drive`` in mode (es, s), with the parameters ``ps``
-        (:meth:`_param_set`; None: the current ones)."""
-        p, J, tlp, tln, _ = ps or self._param_set()
+    def _build(self, x0, drive, es, s):
+        """The closed form from ``x0`` under ``drive`` in mode (es, s) (a chunk's pieces:
+        :meth:`_piece_former`, the same expressions)."""
+        p, J, tlp, tln, _ = self._param_set()
         vp, vn, rbr, _ = drive
         if es == 0:
             if s == 0:
@@ -469,19 +469,28 @@ class DcMotor(PeriodicDrive):
         if s == 0:
             return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
         T = p.tau_c * s + (tlp if s > 0 else tln)
-        return pwl.affine2_from(self._full_system(rt, v0, T, ps)[3], x0)
+        return pwl.affine2_from(self._full_system(rt, v0, T)[3], x0)
 
     def _param_set(self):
         """(params, J_eq, reflected load +, reflected load −, cache key) as they are now."""
         return self.params, self._J, self._tlp, self._tln, self._pkey
 
-    def _piece_builder(self):
-        """Fast engine: the closed-form builder of a chunk's pieces, bound to the parameters of now.
-        A chunk builds its pieces when they are read, and a read of a tick in the previous segment
-        (``state_at``) may come after a ``set_params``: it must see the parameters that segment ran
-        with, as the reference engine's closed form does."""
+    def _piece_former(self, drive, es, s):
+        """Fast engine: ``x0 -> closed form`` of a chunk's piece under ``drive`` in mode (es, s) (not
+        DCM: no chunk has it), what :meth:`_build` gives, with the parameters of now resolved once.
+        A plan holds these: a chunk builds its pieces when they are read, and a read of a tick in
+        the previous segment (``state_at``) may come after a ``set_params``; it must see the
+        parameters that segment ran with, as the reference engine's closed form does."""
         ps = self._param_set()
-        return lambda xs, drive, mode: self._build(xs, drive, *mode, ps)
+        p, _, tlp, tln, _ = ps
+        vp, vn, rbr, _ = drive
+        v0 = vn if es == -1 else vp
+        rt = p.R + rbr
+        if s == 0:
+            lam, i_ss = -rt / p.L, v0 / rt
+            return lambda x0: pwl.first_order_x1(lam, i_ss, x0)
+        system = self._full_system(rt, v0, p.tau_c * s + (tlp if s > 0 else tln), ps)[3]
+        return lambda x0: pwl.affine2_from(system, x0)
 
     def _full_system(self, rt, v0, T, ps=None):
         """(eig, A, u, affine2_system) of the full (i, ω) system for loop resistance rt, voltage v0,

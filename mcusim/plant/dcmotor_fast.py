@@ -95,7 +95,8 @@ class PeriodicDrive:
                 bguards = pieces[(j + q) % npc][2]
                 plan_pieces[q] = (ticks, flow, absA, absu,
                                   tuple(self._mode_guards(*mode, drive)) + tuple(bguards), drive, mode, lin)
-            plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX)
+            plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX,
+                              [self._piece_former(pc[5], *pc[6]) for pc in plan_pieces])
             _lru_put(plans, key, plan, PLANS_MAX)
         else:
             plans.move_to_end(key)
@@ -112,7 +113,7 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, self._piece_builder(), X, ib)
+        self._traj = ChunkTraj(plan, x0, X, ib)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
