@@ -153,10 +153,9 @@ class PeriodPlan:
         # ω is held: a guard without a θ term is monotone in t there, so its ends decide it and the
         # Lipschitz term is dropped (mono 0). A shaft held at the breakaway threshold by a position
         # loop sits 1-3 % of the threshold below it, well inside the bound's slack of one piece.
-        stuck = np.array([pc[6][1] == 0 for pc in self.pieces])
         mono = None
-        if stuck.any():
-            mono = np.where(stuck[:, None] & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
+        if self._stuck.any():
+            mono = np.where(self._stuck[:, :, 0] & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
         return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4], mono
 
     def states_at_piece_starts(self, x0, k: int):

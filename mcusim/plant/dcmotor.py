@@ -455,48 +455,41 @@ class DcMotor(PeriodicDrive):
         return es, s
 
     def _build(self, x0, drive, es, s):
-        """The closed form from ``x0`` under ``drive`` in mode (es, s) (a chunk's pieces:
-        :meth:`_piece_former`, the same expressions)."""
-        p, J, tlp, tln, _ = self._param_set()
-        vp, vn, rbr, _ = drive
+        """The closed form from ``x0`` under ``drive`` in mode (es, s)."""
         if es == 0:
+            p, J = self.params, self._J
             if s == 0:
                 return pwl.static(x0)
-            T = p.tau_c * s + (tlp if s > 0 else tln)
+            T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
             return pwl.first_order_x2(-p.b / J, -T / J, x0)
-        v0 = vn if es == -1 else vp
-        rt = p.R + rbr
-        if s == 0:
-            return pwl.first_order_x1(-rt / p.L, v0 / rt, x0)
-        T = p.tau_c * s + (tlp if s > 0 else tln)
-        return pwl.affine2_from(self._full_system(rt, v0, T)[3], x0)
+        return self._piece_former(drive, es, s)(x0)
 
-    def _param_set(self):
-        """(params, J_eq, reflected load +, reflected load −, cache key) as they are now."""
-        return self.params, self._J, self._tlp, self._tln, self._pkey
+    def _drive_terms(self, drive, es, s):
+        """(loop resistance, voltage, torque term) of mode (es, s) under ``drive``, not DCM (es != 0);
+        the torque term is None when stuck (s = 0: only the current moves)."""
+        p = self.params
+        vp, vn, rbr, _ = drive
+        T = None if s == 0 else p.tau_c * s + (self._tlp if s > 0 else self._tln)
+        return p.R + rbr, vn if es == -1 else vp, T
 
     def _piece_former(self, drive, es, s):
-        """Fast engine: ``x0 -> closed form`` of a chunk's piece under ``drive`` in mode (es, s) (not
-        DCM: no chunk has it), what :meth:`_build` gives, with the parameters of now resolved once.
-        A plan holds these: a chunk builds its pieces when they are read, and a read of a tick in
-        the previous segment (``state_at``) may come after a ``set_params``; it must see the
-        parameters that segment ran with, as the reference engine's closed form does."""
-        ps = self._param_set()
-        p, _, tlp, tln, _ = ps
-        vp, vn, rbr, _ = drive
-        v0 = vn if es == -1 else vp
-        rt = p.R + rbr
-        if s == 0:
-            lam, i_ss = -rt / p.L, v0 / rt
+        """``x0 -> closed form`` under ``drive`` in mode (es, s), not DCM, with the parameters of now
+        resolved once. A fast-engine plan holds these for its pieces: a chunk builds its pieces when
+        they are read, and a read of a tick in the previous segment (``state_at``) may come after a
+        ``set_params``; it must see the parameters that segment ran with, as the reference engine's
+        closed form does."""
+        rt, v0, T = self._drive_terms(drive, es, s)
+        if T is None:
+            lam, i_ss = -rt / self.params.L, v0 / rt
             return lambda x0: pwl.first_order_x1(lam, i_ss, x0)
-        system = self._full_system(rt, v0, p.tau_c * s + (tlp if s > 0 else tln), ps)[3]
+        system = self._full_system(rt, v0, T)[3]
         return lambda x0: pwl.affine2_from(system, x0)
 
-    def _full_system(self, rt, v0, T, ps=None):
+    def _full_system(self, rt, v0, T):
         """(eig, A, u, affine2_system) of the full (i, ω) system for loop resistance rt, voltage v0,
-        torque term T, with the parameters ``ps`` (None: the current ones)."""
-        p, J, _, _, pkey = ps or self._param_set()
-        key = (rt, v0, T, pkey)
+        torque term T."""
+        p, J = self.params, self._J
+        key = (rt, v0, T, self._pkey)
         ent = self._full_cache.get(key)
         if ent is None:
             ekey = (rt, p.L, p.K, J, p.b)

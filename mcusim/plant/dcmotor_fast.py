@@ -54,17 +54,13 @@ class PeriodicDrive:
         return ent
 
     def _piece_flow_new(self, drive, es, s, ticks):
-        p = self.params
-        vp, vn, rbr, _ = drive
-        rt = p.R + rbr
-        v0 = vn if es == -1 else vp
+        rt, v0, T = self._drive_terms(drive, es, s)
         tau = ticks * self._inv_hz
-        if s == 0:
-            lam = -rt / p.L
+        if T is None:
+            lam = -rt / self.params.L
             i_ss = v0 / rt
             return (periodmap.stuck_flow(lam, i_ss, tau), (abs(lam), 0.0, 0.0, 0.0),
                     (abs(lam * i_ss), 0.0), (lam, 0.0, -lam * i_ss))
-        T = p.tau_c * s + (self._tlp if s > 0 else self._tln)
         eig, A, u, _ = self._full_system(rt, v0, T)
         return (periodmap.full_flow(eig, A, u, tau), tuple(abs(a) for a in A),
                 (abs(u[0]), abs(u[1])), (A[0], A[1], u[0]))
