@@ -23,6 +23,14 @@ class _Carrier:
     whenever the waveform starts, changes or ends (read ``.wave``). ``waves`` may also be a callable:
     the listener handles waveforms itself only while it returns true (its owner calls
     :meth:`refresh` when that may have changed).
+
+    A level need not be periodic: a *descriptor* computed on demand (an encoder output derived from
+    the shaft angle, :class:`mcusim.plant.encoder.ShaftCode`) has ``level_at`` but no edges to
+    expand. Its driver publishes it only where every listener takes it: ``listen(fn, waves=...,
+    sinks=f)`` declares that ``f(descriptor)`` names the models that would read it, as a list of
+    (model, key), or None when one of them needs edges (:meth:`Net.wave_sinks`). A listener
+    without ``sinks`` never takes one; if it arrives while a descriptor is present, the
+    descriptor's ``release()`` turns it back into levels.
     """
 
     __slots__ = ()
@@ -32,16 +40,32 @@ class _Carrier:
         self._wlisteners = []   # (fn, predicate or None): handle waveforms themselves
         self._exp_ev = None     # next edge event of the expander
 
-    def listen(self, fn, waves=False) -> None:
+    def listen(self, fn, waves=False, sinks=None) -> None:
         if waves is False:
             self._listeners.append(fn)
         else:
-            self._wlisteners.append((fn, None if waves is True else waves))
+            self._wlisteners.append((fn, None if waves is True else waves, sinks))
+        w = self.wave
+        if w is not None and hasattr(w, "release") and self.wave_sinks(w) is None:
+            w.release()     # a listener that cannot read the descriptor: levels from now on
         self.refresh()
+
+    def wave_sinks(self, desc):
+        """The models that would read the descriptor ``desc`` on this carrier, as (model, key)
+        pairs, or None if a listener needs edges or cannot read it (class docstring)."""
+        if self._listeners or getattr(self, "_forced", None) is not None or len(getattr(self, "_drivers", ())) > 1:
+            return None
+        out = []
+        for _fn, _pred, sinks in self._wlisteners:
+            got = None if sinks is None else sinks(desc)
+            if got is None:
+                return None
+            out.extend(got)
+        return out
 
     def _edge_listeners(self):
         out = list(self._listeners)
-        for fn, pred in self._wlisteners:
+        for fn, pred, _ in self._wlisteners:
             if pred is not None and not pred():
                 out.append(fn)
         return out
@@ -54,7 +78,7 @@ class _Carrier:
                 fn(self)
         if self._wlisteners:
             expanded = self.wave is not None and not wave_changed
-            for fn, pred in self._wlisteners:
+            for fn, pred, _ in self._wlisteners:
                 if pred is None or pred():
                     if wave_changed or (level_changed and not expanded):
                         fn(self)

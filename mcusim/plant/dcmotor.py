@@ -44,7 +44,7 @@ kernel included, for 20 kHz drive/brake PWM with an encoder attached (0.5 s simu
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass, fields, replace
 
 from ..errors import ConfigError
@@ -178,6 +178,8 @@ class DcMotor(PeriodicDrive):
         self._traj = None
         self._memo = (None, 0, None)   # (segment, tick offset, state) of the last observation
         self._prev = None          # (t0, traj) of the previous segment, for state_at()
+        self._hist = deque()       # older (t0, traj), kept while within history_ticks (need_history)
+        self.history_ticks = 0
         self._es = 0               # electrical sign domain: None (no diode), +1, −1, 0 (DCM)
         self._s = 0                # mechanical: +1, −1, 0 (stuck)
         self._peak = abs(self._x0[0])
@@ -224,6 +226,10 @@ class DcMotor(PeriodicDrive):
             self._x0 = (i if current is None else float(current), w if speed is None else float(speed),
                         th if angle is None else float(angle))
             self._peak = max(self._peak, abs(self._x0[0]))
+        for prov in self._providers:    # a jump of the state: whoever reads it lazily settles first
+            before = getattr(prov, "before_jump", None)
+            if before is not None:
+                before()
         self._change(do)
 
     def attach_driver(self, driver) -> None:
@@ -287,7 +293,27 @@ class DcMotor(PeriodicDrive):
         if self._prev is not None and tick >= self._prev[0]:
             t0, tr = self._prev
             return self._at(tr, tick - t0)
-        raise ValueError(f"state_at({tick}) is before the previous segment")
+        for t0, tr in reversed(self._hist):
+            if tick >= t0:
+                return self._at(tr, tick - t0)
+        raise ValueError(f"state_at({tick}) is before the segments kept (history_ticks {self.history_ticks})")
+
+    def need_history(self, ticks: int) -> None:
+        """Keep the segments of at least the last ``ticks`` ticks for :meth:`state_at` (a lazy
+        reader of the encoder, :mod:`mcusim.plant.encoder`, looks back through the input filter)."""
+        self.history_ticks = max(self.history_ticks, int(ticks))
+
+    def passive_changed(self) -> None:
+        """Fast engine: a passive provider's guards changed outside ``on_guard`` (an encoder going
+        from lazy to edge-by-edge counting): locate them again on the current trajectory."""
+        if self._busy or self._traj is None:
+            return          # the running rebuild asks for them
+        if self._ev_passive is not None:
+            self._ev_passive.cancel()
+            self._ev_passive = None
+        if self._pending is not None:
+            self._pending = [g for g in self._pending if not getattr(g[5], "passive_guards", False)] or None
+        self._find_passive()
 
     @property
     def current(self) -> float:
@@ -387,6 +413,14 @@ class DcMotor(PeriodicDrive):
                 self._chunk_lived(tr, n)
             self._peak = max(self._peak, self._segment_peak(tr, n))
             self._x0 = self._at(tr, n)
+            if self.history_ticks and self._prev is not None:
+                hist = self._hist
+                hist.append(self._prev)
+                # an old segment is needed while it ends after now − history_ticks
+                while len(hist) > 1 and hist[1][0] <= now - self.history_ticks:
+                    hist.popleft()
+                if self._t0 <= now - self.history_ticks:
+                    hist.clear()
             self._prev = (self._t0, tr)
         self._t0 = now
         if self._pending is not None and self._pending_time == now:

@@ -12,6 +12,16 @@ crossing down at the first tick with θ(t) < k·2π/C4. The edge is set on the n
 during the motor's plant event (``PRIO_PLANT``). No per-edge error pattern δ_k, jitter or
 hysteresis is modelled (the sheet's [I] options); edges are ideal.
 
+Lazy counting (fast engine): where the decoder reading the outputs can compute its count from the
+shaft angle (an STM32 timer in encoder mode, ``lazy_enter`` in :mod:`mcusim.periph.stm32.tim_lazy`)
+and nobody else needs the edges, the outputs become :class:`ShaftCode` descriptors: their level at
+any tick is the quadrature state of ``k(θ(t))``, and no threshold crossing is located or scheduled.
+The stretch holds while θ is monotone and no two crossings come closer than the decoder's input
+delay (two guards of the motor end it: ω reaching zero, |ω| reaching that speed limit) and ends at
+a threshold the decoder names (the crossing before its counter wraps), at a state jump, a fault
+injection, a listener that needs edges, or a register write the decoder cannot follow.
+:meth:`QuadratureEncoder.materialize` turns the outputs back into levels.
+
 Fault injection (used by scenarios, :mod:`mcusim.scenario`): :meth:`QuadratureEncoder.glitch`
 puts a noise spike on one output; :meth:`QuadratureEncoder.drop_edges` makes the next crossings
 emit no edge (the decoder then lags the shaft by that many counts for good).
@@ -41,7 +51,7 @@ class _Crossings:
         self.ra, self.rb = ra, rb
         self.cpus = frozenset((ra.cpu, rb.cpu))
         self.pending = (tick, direction)
-        self.pos, self.la, self.lb = enc.position, enc.a.level, enc.b.level
+        self.pos, self.la, self.lb = enc._pos, enc.a.level, enc.b.level
         self.last = None        # the last crossing committed
 
     def plan(self, t, d):
@@ -65,8 +75,8 @@ class _Crossings:
     def commit(self, item):
         k, qa, qb, route = item.data
         enc = self.enc
-        enc.position = k
-        enc.edges += 1
+        enc._pos = k
+        enc._edges += 1
         route.serve({enc.a: qa, enc.b: qb})
         self.last = item
 
@@ -75,10 +85,77 @@ class _Crossings:
         next crossing located from the last one served ((tick, direction, firing guards) or None)."""
         if self.last is not None:
             enc = self.enc
-            qa, qb = _QUAD[(enc.position - enc._slip) & 3]
+            qa, qb = _QUAD[(enc._pos - enc._slip) & 3]
             enc.a.settle(enc.name, qa)
             enc.b.settle(enc.name, qb)
             self.on_finish(self.last.nxt)
+
+
+class ShaftCode:
+    """One encoder output as a level descriptor (lazy counting, module docstring): the level at any
+    tick from the shaft angle there. Carried by nets like a waveform, but never expanded into edges
+    (``release`` turns the outputs back into levels when a reader needs them)."""
+
+    __slots__ = ("ch", "enc", "end", "kernel")
+
+    def __init__(self, enc, ch: int):
+        self.enc, self.ch, self.kernel, self.end = enc, ch, enc.kernel, None
+
+    def level_at(self, t: int) -> int:
+        enc = self.enc
+        return _QUAD[(enc.k_at(t) - enc._slip) & 3][self.ch]
+
+    settled_level = level_at
+
+    @property
+    def level(self) -> int:
+        return self.level_at(self.kernel.now)
+
+    def release(self) -> None:
+        self.enc.materialize()
+
+    def same_shape(self, other) -> bool:
+        return False
+
+    def __repr__(self):
+        return f"ShaftCode({self.enc.name}.{'AB'[self.ch]})"
+
+
+class _Lazy:
+    """A lazy-counting stretch: the direction θ moves in, the position and edge count at its start,
+    the decoder (sink) and the threshold crossing that ends it."""
+
+    __slots__ = ("d", "edges0", "exit_guard", "k0", "sink", "w_lim")
+
+    def __init__(self, d, k0, edges0, sink, exit_guard, w_lim):
+        self.d, self.k0, self.edges0, self.sink, self.exit_guard, self.w_lim = d, k0, edges0, sink, exit_guard, w_lim
+
+
+class _Window:
+    """The motor guards that bound a lazy stretch: ω reaching zero (θ would stop being monotone) and
+    |ω| reaching the decoder's speed limit (crossings closer than its input delay). Registered
+    before the encoder, so the motor asks it first at each rebuild: that is where a stretch starts."""
+
+    __slots__ = ("enc",)
+
+    def __init__(self, enc):
+        self.enc = enc
+
+    def plant_guards(self):
+        enc = self.enc
+        if enc._lazy is None:
+            enc._try_lazy()
+        lz = enc._lazy
+        if lz is None:
+            return ()
+        d = float(lz.d)
+        return ((0.0, d, 0.0, 0.0, False, self, "turn"), (0.0, -d, 0.0, lz.w_lim, False, self, "fast"))
+
+    def on_guard(self, tag):
+        self.enc.materialize()
+
+    def before_jump(self):
+        self.enc.materialize()
 
 
 class QuadratureEncoder:
@@ -107,15 +184,121 @@ class QuadratureEncoder:
             k -= 1
         while th >= (k + 1) * self.step:
             k += 1
-        self.position = k
-        self._k0 = self.position
-        self.edges = 0
+        self._pos = k
+        self._k0 = k
+        self._edges = 0
         self.dropped = 0
         self._drop = 0                     # crossings still to suppress (drop_edges)
         self._slip = 0                     # outputs show the state of position - _slip
         self._serve_hint = None            # fast engine: (cpu, vectors) of the last routes
+        self._lazy = None                  # fast engine: the lazy-counting stretch (_Lazy) or None
+        self.lazy_stretches = 0            # fast engine: stretches counted lazily so far
+        self._retry = None                 # after a stretch: the gap of its decoder (retry after an edge)
+        self._retry_ev = None
+        self._glitch_ev = None
         self._out()
+        if getattr(kernel, "fast", False):
+            motor.add_guard_provider(_Window(self))
         motor.add_guard_provider(self)
+
+    @property
+    def position(self) -> int:
+        """k, the absolute quarter-step position (computed from the shaft angle while lazy)."""
+        return self._pos if self._lazy is None else self.k_at(self.kernel.now)
+
+    @position.setter
+    def position(self, k: int) -> None:
+        self._pos = k
+
+    @property
+    def edges(self) -> int:
+        """Edges emitted so far (a lazy stretch emits one per threshold: θ is monotone there)."""
+        lz = self._lazy
+        return self._edges if lz is None else lz.edges0 + abs(self.k_at(self.kernel.now) - lz.k0)
+
+    @edges.setter
+    def edges(self, n: int) -> None:
+        self._edges = n
+
+    def levels(self, k: int):
+        """(A, B) at position ``k``."""
+        return _QUAD[(k - self._slip) & 3]
+
+    def k_at(self, t: int) -> int:
+        """The position at tick ``t`` (≤ now) from the shaft angle, by the guards' own comparisons
+        (θ ≥ (k+1)·step crosses up, θ < k·step crosses down)."""
+        th = self.motor.state_at(t)[2]
+        st = self.step
+        k = math.floor(th / st)
+        while th < k * st:
+            k -= 1
+        while th >= (k + 1) * st:
+            k += 1
+        return k
+
+    # ---- lazy counting (fast engine) -------------------------------------------------------------
+    def _try_lazy(self) -> None:
+        """Start a lazy stretch now if the outputs' only reader is one decoder that takes it."""
+        if self._drop or self._glitch_ev is not None:
+            return
+        w = self.motor.speed
+        if w == 0.0:
+            return
+        now = self.kernel.now
+        if self.k_at(now) != self._pos:
+            return
+        da, db = ShaftCode(self, 0), ShaftCode(self, 1)
+        sa, sb = self.a.wave_sinks(da), self.b.wave_sinks(db)
+        if not sa or not sb or len(sa) != 1 or len(sb) != 1 or sa[0][0] is not sb[0][0]:
+            return
+        sink = sa[0][0]
+        d = 1 if w > 0 else -1
+        got = sink.lazy_enter(self, {sa[0][1]: 0, sb[0][1]: 1}, d, self._pos)
+        if got is None:
+            return
+        k_exit, gap = got
+        # crossings at least `gap` ticks apart: |ω|·(gap + 1) ticks < one step, with a factor 2
+        w_lim = 0.5 * self.step * self.kernel.timebase.base_hz / (gap + 1)
+        if abs(w) >= 0.5 * w_lim:
+            sink.lazy_cancel()
+            return
+        self.motor.need_history(gap)
+        self._retry = gap
+        self._lazy = _Lazy(d, self._pos, self._edges, sink, self._exit_guard(k_exit, d), w_lim)
+        self.lazy_stretches += 1
+        self.a.set_wave(self.name, da)
+        self.b.set_wave(self.name, db)
+
+    def _retry_lazy(self) -> None:
+        self._retry_ev = None
+        if self._lazy is None:
+            self.motor.input_changed()      # a rebuild asks the window (_Window.plant_guards) first
+
+    def _exit_guard(self, k_exit: int, d: int):
+        """The passive guard of the crossing into ``k_exit`` moving in direction ``d``."""
+        st = self.step
+        if d > 0:
+            return (0.0, 0.0, -1.0, k_exit * st, False, self, "exit")       # θ ≥ k_exit·step
+        return (0.0, 0.0, 1.0, -((k_exit + 1) * st), True, self, "exit")   # θ < (k_exit+1)·step
+
+    def set_exit(self, k_exit: int) -> None:
+        """The decoder's stretch now ends at the crossing into ``k_exit`` (a counter write)."""
+        lz = self._lazy
+        if lz is not None:
+            lz.exit_guard = self._exit_guard(k_exit, lz.d)
+            self.motor.passive_changed()
+
+    def materialize(self) -> None:
+        """End a lazy stretch at now: the outputs are levels again and every crossing is an edge."""
+        lz = self._lazy
+        if lz is None:
+            return
+        k = self.k_at(self.kernel.now)
+        self._edges = lz.edges0 + abs(k - lz.k0)
+        self._pos = k
+        self._lazy = None
+        self._out()         # the decoder, told its descriptors end, rebuilds what is in flight
+        self.motor.passive_changed()
 
     @property
     def count(self) -> int:
@@ -127,7 +310,10 @@ class QuadratureEncoder:
         self.b.set(self.name, qb)
 
     def plant_guards(self):
-        return self._guards_at(self.position)
+        lz = self._lazy
+        if lz is not None:
+            return (lz.exit_guard,)
+        return self._guards_at(self._pos)
 
     def _guards_at(self, k):
         st = self.step
@@ -135,9 +321,16 @@ class QuadratureEncoder:
                 (0.0, 0.0, 1.0, -(k * st), True, self, -1))       # θ < k·step
 
     def on_guard(self, direction):
+        if direction == "exit":
+            self.materialize()      # the crossing before the decoder's wrap: edge by edge from here
+            return
+        if self._retry is not None and self._retry_ev is None:
+            # counting edge by edge after a stretch: try another once this edge has reached the
+            # decoder (a stretch starts at a rebuild of the motor, with nothing in flight)
+            self._retry_ev = self.kernel.after(self._retry + 1, self._retry_lazy, prio=PRIO_PLANT)
         th = self.motor.angle
         st = self.step
-        k = self.position
+        k = self._pos
         if direction > 0:
             k += 1
             while th >= (k + 1) * st:   # more than one threshold in one tick (only at absurd speeds)
@@ -146,15 +339,15 @@ class QuadratureEncoder:
             k -= 1
             while th < k * st:
                 k -= 1
-        while self.position != k:       # one quadrature step (one edge) at a time
-            d = 1 if k > self.position else -1
-            self.position += d
+        while self._pos != k:       # one quadrature step (one edge) at a time
+            d = 1 if k > self._pos else -1
+            self._pos += d
             if self._drop:              # injected fault: this crossing emits no edge
                 self._drop -= 1
                 self._slip += d
                 self.dropped += 1
                 continue
-            self.edges += 1
+            self._edges += 1
             self._out()
 
     def crossing_stream(self, direction, tick, locate, state_at, on_finish, first=False):
@@ -196,9 +389,16 @@ class QuadratureEncoder:
         if channel not in ("A", "B") or int(width) != width or width < 1:
             raise ConfigError(f"encoder {self.name}: glitch channel must be 'A' or 'B' and width "
                               f"a positive number of ticks, not {channel!r}, {width!r}")
+        self.materialize()
         net = self.a if channel == "A" else self.b
-        net.set(self.name, 1 - _QUAD[(self.position - self._slip) & 3][channel == "B"])
-        self.kernel.after(int(width), self._out, prio=PRIO_PLANT)
+        net.set(self.name, 1 - _QUAD[(self._pos - self._slip) & 3][channel == "B"])
+        if self._glitch_ev is not None:
+            self._glitch_ev.cancel()
+        self._glitch_ev = self.kernel.after(int(width), self._glitch_end, prio=PRIO_PLANT)
+
+    def _glitch_end(self) -> None:
+        self._glitch_ev = None
+        self._out()
 
     def drop_edges(self, n: int) -> None:
         """Injected fault: the next ``n`` threshold crossings emit no edge (a dirty or damaged
@@ -206,6 +406,8 @@ class QuadratureEncoder:
         behind (in the direction of those crossings) for good. ``n = 0`` cancels what is left."""
         if int(n) != n or n < 0:
             raise ConfigError(f"encoder {self.name}: drop_edges({n!r}) needs a whole number >= 0")
+        if n:
+            self.materialize()
         self._drop = int(n)
 
     def __repr__(self):

@@ -149,7 +149,8 @@ class Gpio(Peripheral):
             # waveforms pass through a push-pull pin as they are; open drain needs every edge
             tim.oc[route[1]].listen(lambda port, n=n, route=route: self._oc_changed(n, route, port),
                                     waves=lambda n=n: not (self.value["OTYPER"] >> n) & 1)
-            net.listen(lambda net, n=n, route=route: self._pin_changed(n, route, net), waves=True)
+            net.listen(lambda net, n=n, route=route: self._pin_changed(n, route, net), waves=True,
+                       sinks=lambda desc, n=n, route=route: self._pin_sinks(n, route, desc))
         self._pin_changed(n, route, net)
 
     def _oc_changed(self, n, route, port):
@@ -158,6 +159,13 @@ class Gpio(Peripheral):
                 self.pins[n].set_wave(self.name, port.wave)
             else:
                 self.pins[n].set(self.name, self._af_level(n, port.value))
+
+    def _pin_sinks(self, n, route, desc):
+        """Who reads a level descriptor on pin ``n`` through this route: the timer input's readers
+        (an IDR read takes the pin's level at its tick, so it needs no edges)."""
+        if self._routes.get(n) != route:
+            return []
+        return self.mcu.periph[route[0]].ti[route[1]].wave_sinks(desc)
 
     def _pin_changed(self, n, route, net):
         if self._routes.get(n) == route:

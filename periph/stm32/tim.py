@@ -64,6 +64,7 @@ from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import Net, Port
 
 from .tim_input import EncoderStage, TiInput
+from .tim_lazy import EXIT_FIRST, LazyEncoderStage
 from .tim_steady import SteadyStage
 
 # CR1 bits (§1.2)
@@ -130,8 +131,8 @@ def _registers(bits: int, arr_reset: int) -> tuple:
         Register("PSC", 0x28, fields=(Field("PSC", 0, 16),)),  # preload; active copy loads at UEV
         Register("ARR", 0x2C, reset=arr_reset, on_write="_write_arr", fields=(Field("ARR", 0, bits),)),
         Register("RCR", 0x30, on_write="_write_rcr", fields=(Field("REP", 0, 16),)),
-        Register("CCR1", 0x34, on_write="_write_ccr1", fields=(Field("CCR1", 0, bits),)),
-        Register("CCR2", 0x38, on_write="_write_ccr2", fields=(Field("CCR2", 0, bits),)),
+        Register("CCR1", 0x34, on_write="_write_ccr1", on_read="_read_ccr1", fields=(Field("CCR1", 0, bits),)),
+        Register("CCR2", 0x38, on_write="_write_ccr2", on_read="_read_ccr2", fields=(Field("CCR2", 0, bits),)),
         Register("CCR3", 0x3C, on_write="_write_ccr3", fields=(Field("CCR3", 0, bits),)),
         Register("CCR4", 0x40, on_write="_write_ccr4", fields=(Field("CCR4", 0, bits),)),
         Register("BDTR", 0x44, on_write="_write_bdtr", fields=(
@@ -147,7 +148,7 @@ def _registers(bits: int, arr_reset: int) -> tuple:
     )
 
 
-class Tim(EncoderStage, SteadyStage, Peripheral):
+class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
     SIZE = 0x400
     ACCESS_SIZES = (2, 4)  # RM: timer registers take half-word or word accesses
 
@@ -189,17 +190,27 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         self._inp = {1: TiInput(self.kernel, 1, self._ti_apply), 2: TiInput(self.kernel, 2, self._ti_apply)}
         self._steady, self._uif_lazy = False, None   # fast engine (tim_steady)
         self._wave_pol = [0] * 5
-        for ch in CHANNELS:
-            # outside encoder mode the inputs are ignored, so a waveform on them needs no edges
-            self.ti[ch].listen(self._ti_net, waves=lambda: not self._sms)
+        self._enc_lazy = None           # fast engine: a lazy encoder stretch (tim_lazy)
+        for ch in (1, 2):
+            # outside encoder mode the inputs are ignored, so a waveform on them needs no edges;
+            # an encoder's level descriptors are read lazily when lazy_enter takes them
+            self.ti[ch].listen(self._ti_net, waves=lambda: not self._sms or self._enc_lazy is not None,
+                               sinks=lambda desc, ch=ch: [(self, ch)])
+        for ch in (3, 4):       # not modelled as inputs: never read
+            self.ti[ch].listen(self._ti_net, waves=True, sinks=lambda desc: [])
 
     # ------------------------------------------------------------------ public helpers
     @property
     def counter(self) -> int:
         """CNT now, without side effects."""
+        if self._enc_lazy is not None:
+            self._lazy_sync()
         return self._cnt_at(self.kernel.now)
 
     def set_kernel_clock(self, clock) -> None:
+        if self._enc_lazy is not None:   # the input stage's timing changes: edge by edge
+            self._lazy_sync()
+            self._enc_lazy.enc.materialize()
         self._sync()
         if self._run:
             self._pscc = max(0, (self.kernel.now - self._tb) // self._P)
@@ -455,6 +466,8 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         raise UnsupportedConfiguration(self.name, reg, fld, value, why)
 
     def _read_cr1(self, stored: int) -> int:
+        if self._enc_lazy is not None:
+            self._lazy_sync()
         return (stored & ~DIR) | (0 if self._up else DIR)  # DIR is the hardware direction
 
     def _write_cr1(self, old: int, new: int) -> None:
@@ -503,6 +516,11 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         self._plan()
 
     def write_register(self, reg, data, lanes=-1):
+        lazy = self._enc_lazy
+        if lazy is not None:
+            self._lazy_sync()
+            if reg.name in EXIT_FIRST:
+                lazy.enc.materialize()
         if reg.name == "SR":
             if self._steady:
                 self._steady_flush(self.kernel.now)
@@ -514,8 +532,12 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
             elif self._ev_wrap is None and self._wrap_needed():
                 self._sync()    # a preload now waits for the next update event: it needs its wrap
                 self._plan()
+        if self._enc_lazy is not None:
+            self._lazy_after_write()
 
     def _read_sr(self, stored: int) -> int:
+        if self._enc_lazy is not None:
+            self._lazy_sync()
         if self._steady:
             self._steady_flush(self.kernel.now)
         if self._lazy.count(None) != 5:
@@ -550,6 +572,8 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
         self._plan()
 
     def _read_cnt(self, stored: int) -> int:
+        if self._enc_lazy is not None:
+            self._lazy_sync()
         cnt = self._cnt_at(self.kernel.now)
         if self.value["CR1"] & UIFREMAP:  # §1.2: bit 31 = UIFCPY
             if self._steady:
@@ -576,6 +600,18 @@ class Tim(EncoderStage, SteadyStage, Peripheral):
             self._sync()
             self._ccr[ch] = new
             self._plan()
+
+    def _read_ccr1(self, stored: int) -> int:
+        if self._enc_lazy is not None:    # a capture may have happened lazily
+            self._lazy_sync()
+            return self.value["CCR1"]
+        return stored
+
+    def _read_ccr2(self, stored: int) -> int:
+        if self._enc_lazy is not None:
+            self._lazy_sync()
+            return self.value["CCR2"]
+        return stored
 
     def _write_ccr1(self, old, new): self._write_ccr(1, old, new)
     def _write_ccr2(self, old, new): self._write_ccr(2, old, new)

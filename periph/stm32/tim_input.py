@@ -114,6 +114,10 @@ class EncoderStage:
         return filter_timing(self._icf[ch], (self.value["CR1"] >> 8) & 3, self._P)
 
     def _ti_net(self, net) -> None:
+        if self._enc_lazy is not None:      # counting lazily (tim_lazy)
+            if net.wave is not None:
+                return                      # a descriptor taken by lazy_enter
+            self._lazy_end()                # it ends: the crossings in flight, edge by edge
         if not self._sms:
             return
         ch = 1 if net is self.ti[1] else 2 if net is self.ti[2] else 0
