@@ -263,7 +263,7 @@ class QuadratureEncoder:
             sink.lazy_cancel()
             return
         self.motor.need_history(gap)
-        self._retry = gap
+        self._retry = (gap, sink)
         self._lazy = _Lazy(d, self._pos, self._edges, sink, self._exit_guard(k_exit, d), w_lim)
         self.lazy_stretches += 1
         self.a.set_wave(self.name, da)
@@ -271,8 +271,12 @@ class QuadratureEncoder:
 
     def _retry_lazy(self) -> None:
         self._retry_ev = None
-        if self._lazy is None:
-            self.motor.input_changed()      # a rebuild asks the window (_Window.plant_guards) first
+        if self._lazy is not None or self.motor.speed == 0.0:
+            return
+        if not self._retry[1].lazy_possible():
+            self._retry = None      # the decoder's configuration says no: the next rebuild asks again
+            return
+        self.motor.input_changed()  # a rebuild asks the window (_Window.plant_guards) first
 
     def _exit_guard(self, k_exit: int, d: int):
         """The passive guard of the crossing into ``k_exit`` moving in direction ``d``."""
@@ -327,7 +331,7 @@ class QuadratureEncoder:
         if self._retry is not None and self._retry_ev is None:
             # counting edge by edge after a stretch: try another once this edge has reached the
             # decoder (a stretch starts at a rebuild of the motor, with nothing in flight)
-            self._retry_ev = self.kernel.after(self._retry + 1, self._retry_lazy, prio=PRIO_PLANT)
+            self._retry_ev = self.kernel.after(self._retry[0] + 1, self._retry_lazy, prio=PRIO_PLANT)
         th = self.motor.angle
         st = self.step
         k = self._pos

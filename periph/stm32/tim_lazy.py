@@ -67,6 +67,10 @@ class Stretch:
 class LazyEncoderStage:
     """The lazy-counting part of :class:`mcusim.periph.stm32.tim.Tim` (module docstring)."""
 
+    def lazy_possible(self) -> bool:
+        """Whether the configuration lets a stretch start (what is in flight aside)."""
+        return self._enc_lazy is None and self._lazy_ok()
+
     def _lazy_ok(self) -> bool:
         v = self.value
         return bool(self.kernel.fast and self._sms == 3 and v["CR1"] & _CEN and self._psc == 0
