@@ -101,6 +101,10 @@ class _Carrier:
             return
         if self.wave is not None and not self._edge_listeners():
             return      # everyone reads the descriptor
+        for w in waves:
+            if hasattr(w, "release"):   # a level descriptor has no edges to expand (a drive, a
+                w.release()             # second driver, a listener that needs edges): levels
+                return
         kernel = waves[0].kernel
         ts = [t for w, t in ((w, w.next_edge(kernel.now)[0]) for w in waves) if w.end is None or t < w.end]
         if not ts:

@@ -88,6 +88,13 @@ def run_rig(engine, spec):
             enc.drop_edges(v)
         elif kind == "state":
             motor.set_state(speed=v)
+        elif kind == "pin":             # an external stimulus takes PB4 from the encoder, or gives it back
+            if v is None:
+                sim.pin("PB4").release()
+            else:
+                sim.pin("PB4").drive(v)
+        elif kind == "moder":           # the firmware takes PB4 out of its alternate function, or back
+            _af(m, GPIOB, 4, 2) if v else m.write32(GPIOB, m.read32(GPIOB) & ~(3 << 8))
     for t, kind, reg, v in spec["ops"]:
         k.at(t, op, kind, reg, v, prio=PRIO_CPU)
     sim.run(seconds=spec["ms"] / 1000)
@@ -246,3 +253,23 @@ def test_reads_at_each_crossings_effect_tick_see_it_exactly_then(icf, ckd):
         ops.append((t_eff + 2, "w", "SR", 0))
     ops.sort(key=lambda o: o[0])
     assert assert_engines_agree({**spec, "ops": ops}) >= 1
+
+
+def test_a_pin_taken_from_the_encoder_mid_stretch_ends_it_and_counting_goes_on_edge_by_edge():
+    """Found in review: a drive of PB4 (or PB4 leaving its alternate function) took the descriptor
+    off TI1, the timer stopped counting lazily but the encoder stayed lazy, and nothing counted the
+    other channel's edges (then the forced net tried to expand the descriptor and crashed)."""
+    reads = [(t * MS // 4, "r", r, 0) for t in range(1, 100) for r in ("CNT", "CR1")]
+    for ops in ([(6 * MS, "pin", None, 1), (7 * MS, "pin", None, None)],
+                [(6 * MS, "moder", None, 0), (7 * MS, "moder", None, 1)]):
+        spec = _steady_spec(ms=25, pwm=0, overrides={"motor1.J": 5e-7}, ops=sorted(reads + ops, key=lambda o: o[0]))
+        assert assert_engines_agree(spec) >= 2
+
+
+def test_lowering_the_capture_prescaler_makes_the_next_rise_capture():
+    """Found in review: with IC1PSC lowered from /8 to /1 while 5 rises were counted, edge by edge the
+    next rise captures and the count restarts; the lazy count had added phantom captures (CC1OF)."""
+    ops = [(t * MS // 3, "r", r, 0) for t in range(1, 60) for r in ("CCR1", "SR")]
+    ops += [(10 * MS, "w", "CCMR1", 0x0101), (10 * MS + 5, "w", "SR", 0)]
+    spec = _steady_spec(ms=20, pwm=0, icpsc=3, overrides={"motor1.J": 5e-7}, ops=sorted(ops, key=lambda o: o[0]))
+    assert assert_engines_agree(spec) >= 2

@@ -241,15 +241,15 @@ class QuadratureEncoder:
         """Start a lazy stretch now if the outputs' only reader is one decoder that takes it."""
         if self._drop or self._glitch_ev is not None:
             return
-        w = self.motor.speed
-        if w == 0.0:
-            return
-        now = self.kernel.now
-        if self.k_at(now) != self._pos:
-            return
         da, db = ShaftCode(self, 0), ShaftCode(self, 1)
-        sa, sb = self.a.wave_sinks(da), self.b.wave_sinks(db)
-        if not sa or not sb or len(sa) != 1 or len(sb) != 1 or sa[0][0] is not sb[0][0]:
+        sa = self.a.wave_sinks(da)      # first: an interrupt pin (an AVR's INTn) says no at once
+        if not sa or len(sa) != 1:
+            return
+        sb = self.b.wave_sinks(db)
+        if not sb or len(sb) != 1 or sa[0][0] is not sb[0][0]:
+            return
+        w = self.motor.speed
+        if w == 0.0 or self.k_at(self.kernel.now) != self._pos:
             return
         sink = sa[0][0]
         d = 1 if w > 0 else -1
@@ -263,7 +263,7 @@ class QuadratureEncoder:
             sink.lazy_cancel()
             return
         self.motor.need_history(gap)
-        self._retry = (gap, sink)
+        self._retry = (gap, sink, w_lim)
         self._lazy = _Lazy(d, self._pos, self._edges, sink, self._exit_guard(k_exit, d), w_lim)
         self.lazy_stretches += 1
         self.a.set_wave(self.name, da)
@@ -271,8 +271,9 @@ class QuadratureEncoder:
 
     def _retry_lazy(self) -> None:
         self._retry_ev = None
-        if self._lazy is not None or self.motor.speed == 0.0:
-            return
+        w = abs(self.motor.speed)
+        if self._lazy is not None or w == 0.0 or w >= 0.5 * self._retry[2]:
+            return      # (too fast for a stretch: the next edge asks again, without a rebuild)
         if not self._retry[1].lazy_possible():
             self._retry = None      # the decoder's configuration says no: the next rebuild asks again
             return
@@ -328,7 +329,8 @@ class QuadratureEncoder:
         if direction == "exit":
             self.materialize()      # the crossing before the decoder's wrap: edge by edge from here
             return
-        if self._retry is not None and self._retry_ev is None:
+        if (self._retry is not None and self._retry_ev is None
+                and abs(self.motor.speed) < 0.5 * self._retry[2]):
             # counting edge by edge after a stretch: try another once this edge has reached the
             # decoder (a stretch starts at a rebuild of the motor, with nothing in flight)
             self._retry_ev = self.kernel.after(self._retry[0] + 1, self._retry_lazy, prio=PRIO_PLANT)

@@ -117,7 +117,9 @@ class EncoderStage:
         if self._enc_lazy is not None:      # counting lazily (tim_lazy)
             if net.wave is not None:
                 return                      # a descriptor taken by lazy_enter
+            enc = self._enc_lazy.enc
             self._lazy_end()                # it ends: the crossings in flight, edge by edge
+            enc.materialize()               # (if the pin left the encoder: a drive, a GPIO mode)
         if not self._sms:
             return
         ch = 1 if net is self.ti[1] else 2 if net is self.ti[2] else 0

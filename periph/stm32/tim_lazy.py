@@ -161,7 +161,7 @@ class LazyEncoderStage:
             if not rises:
                 continue
             div = 1 << self._icpsc[c]
-            capn = self._capn[c]
+            capn = min(self._capn[c], div - 1)   # ICxPSC lowered: the next rise captures
             caps, self._capn[c] = divmod(capn + rises, div)
             if not caps:
                 continue
