@@ -103,7 +103,7 @@ class ShaftCode:
 
     def level_at(self, t: int) -> int:
         enc = self.enc
-        return _QUAD[(enc.k_at(t) - enc._slip) & 3][self.ch]
+        return enc.levels(enc.k_at(t))[self.ch]
 
     settled_level = level_at
 
@@ -123,12 +123,12 @@ class ShaftCode:
 
 class _Lazy:
     """A lazy-counting stretch: the direction θ moves in, the position and edge count at its start,
-    the decoder (sink) and the threshold crossing that ends it."""
+    the threshold crossing that ends it and the speed limit."""
 
-    __slots__ = ("d", "edges0", "exit_guard", "k0", "sink", "w_lim")
+    __slots__ = ("d", "edges0", "exit_guard", "k0", "w_lim")
 
-    def __init__(self, d, k0, edges0, sink, exit_guard, w_lim):
-        self.d, self.k0, self.edges0, self.sink, self.exit_guard, self.w_lim = d, k0, edges0, sink, exit_guard, w_lim
+    def __init__(self, d, k0, edges0, exit_guard, w_lim):
+        self.d, self.k0, self.edges0, self.exit_guard, self.w_lim = d, k0, edges0, exit_guard, w_lim
 
 
 class _Window:
@@ -178,12 +178,7 @@ class QuadratureEncoder:
         self.a, self.b = a, b
         self.counts_per_rev = int(counts_per_rev)
         self.step = 2.0 * math.pi / self.counts_per_rev
-        th = motor.angle
-        k = math.floor(th / self.step)
-        while th < k * self.step:          # make floor() agree with the guard expressions
-            k -= 1
-        while th >= (k + 1) * self.step:
-            k += 1
+        k = self._k_of(motor.angle)
         self._pos = k
         self._k0 = k
         self._edges = 0
@@ -225,9 +220,12 @@ class QuadratureEncoder:
         return _QUAD[(k - self._slip) & 3]
 
     def k_at(self, t: int) -> int:
-        """The position at tick ``t`` (≤ now) from the shaft angle, by the guards' own comparisons
-        (θ ≥ (k+1)·step crosses up, θ < k·step crosses down)."""
-        th = self.motor.state_at(t)[2]
+        """The position at tick ``t`` (≤ now) from the shaft angle."""
+        return self._k_of(self.motor.state_at(t)[2])
+
+    def _k_of(self, th: float) -> int:
+        """The position at angle ``th`` by the guards' own comparisons (θ ≥ (k+1)·step crosses up,
+        θ < k·step crosses down), which floor() alone may round differently."""
         st = self.step
         k = math.floor(th / st)
         while th < k * st:
@@ -264,7 +262,7 @@ class QuadratureEncoder:
             return
         self.motor.need_history(gap)
         self._retry = (gap, sink, w_lim)
-        self._lazy = _Lazy(d, self._pos, self._edges, sink, self._exit_guard(k_exit, d), w_lim)
+        self._lazy = _Lazy(d, self._pos, self._edges, self._exit_guard(k_exit, d), w_lim)
         self.lazy_stretches += 1
         self.a.set_wave(self.name, da)
         self.b.set_wave(self.name, db)

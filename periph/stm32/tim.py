@@ -601,17 +601,14 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
             self._ccr[ch] = new
             self._plan()
 
-    def _read_ccr1(self, stored: int) -> int:
+    def _read_captured(self, reg: str, stored: int) -> int:
         if self._enc_lazy is not None:    # a capture may have happened lazily
             self._lazy_sync()
-            return self.value["CCR1"]
+            return self.value[reg]
         return stored
 
-    def _read_ccr2(self, stored: int) -> int:
-        if self._enc_lazy is not None:
-            self._lazy_sync()
-            return self.value["CCR2"]
-        return stored
+    def _read_ccr1(self, stored): return self._read_captured("CCR1", stored)
+    def _read_ccr2(self, stored): return self._read_captured("CCR2", stored)
 
     def _write_ccr1(self, old, new): self._write_ccr(1, old, new)
     def _write_ccr2(self, old, new): self._write_ccr(2, old, new)
