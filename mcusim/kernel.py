@@ -124,6 +124,8 @@ class Kernel:
                 time, _, _, ev = pop(q)
                 if ev.cancelled:
                     continue
+                if time < self.now:     # a model that jumped ``now`` past a queued event
+                    raise RuntimeError(f"internal error: event {ev.fn!r} at tick {time} is before now ({self.now})")
                 self.now = time
                 ev.cancelled = True  # fired events count as done, so cancel() on them is harmless
                 ev.fn(*ev.args)

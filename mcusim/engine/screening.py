@@ -101,12 +101,13 @@ class PeriodPlan:
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
 
     def first_flag(self, x0, n: int, extra_guards):
-        """(k, X, ib): the first period k (0..n) in which a guard may fire (n if none fires in n
-        periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), and a bound of |i|
-        over those k periods (at least as large as the largest |i| in them)."""
+        """(k, X, ib, (wlo, whi)): the first period k (0..n) in which a guard may fire (n if none
+        fires in n periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), a bound of
+        |i| over those k periods (at least as large as the largest |i| in them), and bounds of |ω|
+        there (wlo ≤ |ω| ≤ whi)."""
         X = self.table.augmented_states(x0, n)   # (n+1, 4)
         if not self._bounded or n == 0:
-            return 0, X[:1], 0.0
+            return 0, X[:1], 0.0, (0.0, 0.0)
         arrays = self._screens.get(extra_guards)
         if arrays is None:
             if len(self._screens) > 16:
@@ -136,8 +137,12 @@ class PeriodPlan:
         bad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=(0, 2))
         k = int(np.argmax(bad)) if bad.any() else n
         if k == 0:
-            return 0, X[:1], 0.0
-        return k, X[:k + 1], float(xb[:, :k, 0].max())
+            return 0, X[:1], 0.0, (0.0, 0.0)
+        # |ω| over the k periods: at most the inside bound, at least |ω| at a piece start less the
+        # most dω/dt can move it over the piece (a counted run of encoder crossings needs both)
+        w = xb[:, :k, 1]
+        wlo = float((np.abs(S[:, :k, 1]) - self._tau[:, :, 0] * D[:, :k, 1]).min())
+        return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(w.max()))
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
@@ -169,9 +174,11 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf):
+    def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf, wspan=(0.0, math.inf)):
         self.plan, self.x0 = plan, tuple(x0)
         self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
+        # wlo ≤ |ω| ≤ whi everywhere in the chunk (the screening's bounds, with the margin)
+        self.wspan = (wspan[0] * (1.0 - MARGIN), wspan[1] * (1.0 + MARGIN))
         self._form = plan.formers            # per piece: start state -> closed-form pwl.Traj
         self.X = X                           # states at the period starts of the chunk
         self.periods = len(X) - 1

@@ -35,6 +35,16 @@ longest prefix of planned crossings whose handlers all return before the first c
 whichever stream that is: edge by edge, that crossing's events come after all of them. Absorbed
 events are cancelled only if their stream committed; the others stay queued as they were.
 
+**Counted runs.** Planning a run locates every crossing on the motor's trajectory (~10 µs each).
+Where each stream's motor is in a chunk of PWM periods (θ monotone) whose speed bound keeps its
+crossings more than twice a handler's reach apart (so the last two conditions above hold for
+every crossing), :func:`_count` does not locate them: the crossings whose handlers return before
+the barrier are those up to one tick (:func:`last_tick_returning_by`), and their number is the
+position the encoder's guards reach at that tick, from the shaft angle there, less the position
+now. Only the last crossing served and the first one left out are located, for the cut: the first
+crossing left out, of any stream, or earlier where another stream's last handler would still run
+then. The handlers are applied one after the other, as a planned run applies them.
+
 The levels a handler reads are the ones after its edge: the next edge comes after its return.
 Flags set and cleared, the I flag cleared at entry and set by RETI, the pending-line bits: none of
 these outlive the handler, so serving leaves them as the edge-by-edge run leaves them.
@@ -116,38 +126,107 @@ def _stream_of(ev, cpus):
     return stream
 
 
+#: a counted run costs about three searches of the trajectory per stream; where the crossings its
+#: window can hold are fewer, they are planned one by one
+COUNT_MIN = 4
+
+
+def last_tick_returning_by(clock, ticks: int, R: int) -> int:
+    """The last tick t whose edge's handler returns by tick ``R`` (:meth:`Route.returns`: the first
+    edge of ``clock`` at or after t, plus ``ticks``); every earlier tick's returns by R too."""
+    return (R - ticks) // clock.period * clock.period
+
+
 def serve_run(kernel, owner) -> bool:
     """Serve the crossings of the stream ``owner``, whose first crossing is due now, and of the
-    streams of other encoders whose queued crossings come in between, in time order, as long as
-    each one is served (module docstring). Their events are *absorbed*: they are no barrier, and
-    they are cancelled if their stream serves. Returns False if not even the first crossing is
-    served (nothing changed); else ``kernel.now`` is the latest return among the committed
-    handlers, and each stream has committed its crossings and scheduled what comes next
-    (``finish``).
+    streams of other encoders whose queued crossings come before the *barrier* (the first queued
+    event that is not such a crossing). Their events are *absorbed*: they are cancelled if their
+    stream serves. Returns False if not even the first crossing is served (nothing changed); else
+    ``kernel.now`` is the latest return among the served handlers, and each stream has committed
+    its crossings and scheduled what comes next (``finish``).
 
-    Of the planned crossings, the longest prefix in time order is committed whose handlers all
-    return before the first crossing left out: edge by edge, that crossing's events come after
-    them all, whichever stream it belongs to."""
+    The run is counted (:func:`_count`) where it can be, else planned crossing by crossing
+    (:func:`_plan`)."""
     streams = [owner]
     cpus = set(owner.cpus)
     absorbed = set()
+    head = kernel.first_queued()
+    while head is not None:
+        other = _stream_of(head[3], cpus)
+        if other is None:
+            break
+        streams.append(other)
+        absorbed.add(head[3])
+        cpus.update(other.cpus)
+        head = kernel.first_queued(absorbed)
+    barrier = None if head is None else (head[0], head[1])
+    return _count(kernel, streams, barrier) or _plan(kernel, streams, barrier)
+
+
+def _count(kernel, streams, barrier) -> bool:
+    """A run without locating every crossing: where each stream's motor is in a chunk of PWM
+    periods whose speed bounds keep its crossings further apart than a handler takes, a stream's
+    crossings up to a tick are counted from the shaft angle there (the position its encoder's
+    guards would reach: θ is monotone), and only the last one served and the first one left out
+    are located. Every handler served returns before the barrier, and the run ends where no handler
+    is in flight, as :func:`_plan` would serve it edge after edge. False if the run is not counted
+    (nothing changed)."""
+    R = kernel.horizon
+    if barrier is not None:     # a handler's return at (t, PRIO_CPU) must come before the barrier
+        R = min(R, barrier[0] if PRIO_CPU < barrier[1] else barrier[0] - 1)
+    hz = kernel.timebase.base_hz
+    if sum(s.count_bound(R, hz) for s in streams) < COUNT_MIN:
+        return False
+    total = 0
+    owner = streams[0]
+    for s in streams:
+        n = s.count_window(R, hz)
+        if n is None or (s is owner and n == 0):
+            return False
+        total += n
+    if total < COUNT_MIN:
+        return False
+    # the cut: the first crossing left out, if every handler before it has returned by then (else
+    # earlier, at the last crossing of a stream whose handler would still run)
+    c = None
+    for s in streams:
+        nxt = s.locate_next()
+        if nxt is not None and (c is None or nxt[0] < c):
+            c = nxt[0]
+    for _ in range(2 * len(streams) + 2):
+        cuts = [s.cut(c) for s in streams]
+        if None in cuts:
+            return False
+        late = [x[1] for x in cuts if x[0] and c is not None and x[2] >= c]
+        if not late:
+            break
+        c = min(late)
+    else:
+        return False
+    if not cuts[0][0]:
+        return False
+    top = kernel.now
+    for s, (m, L, ret) in zip(streams, cuts):
+        if m:
+            s.commit_count(m, L, ret)
+            top = max(top, ret)
+    kernel.now = top
+    for s in streams:
+        s.finish()
+    return True
+
+
+def _plan(kernel, streams, barrier) -> bool:
+    """The run crossing by crossing, in time order, as long as each one is served (module
+    docstring). Of the planned crossings, the longest prefix in time order is committed whose
+    handlers all return before the first crossing left out: edge by edge, that crossing's events
+    come after them all, whichever stream it belongs to."""
     horizon = kernel.horizon
     plan = []
     t_stop = None
-    head = kernel.first_queued()     # the first queued event not absorbed (the queue is left as it is)
 
-    def barrier_before(time, prio):
-        """Absorb the queued crossings up to (time, prio); True if another event comes first."""
-        nonlocal head
-        while head is not None and (head[0], head[1]) <= (time, prio):
-            other = _stream_of(head[3], cpus)
-            if other is None:
-                return True
-            streams.append(other)
-            absorbed.add(head[3])
-            cpus.update(other.cpus)
-            head = kernel.first_queued(absorbed)
-        return False
+    def before_barrier(time, prio):
+        return barrier is None or (time, prio) < barrier
 
     while True:
         s = t = None            # the stream with the earliest crossing (the first one on a tie)
@@ -157,15 +236,12 @@ def serve_run(kernel, owner) -> bool:
                 s, t = x, p[0]
         if s is None:
             break
-        known = len(streams)
-        if t > horizon or barrier_before(t, PRIO_PLANT):
+        if t > horizon or not before_barrier(t, PRIO_PLANT):
             t_stop = t
             break
-        if len(streams) != known:
-            continue            # a stream absorbed just now may have an earlier crossing
         item = s.plan(t, s.pending[1])
         if (item is None or item.ret > horizon or (item.nxt is not None and item.nxt[0] <= item.ret)
-                or barrier_before(item.ret, PRIO_CPU)):
+                or not before_barrier(item.ret, PRIO_CPU)):
             t_stop = t
             break
         plan.append(item)

@@ -101,7 +101,7 @@ class PeriodicDrive:
             if prov is not self._driver and not getattr(prov, "passive_guards", False):
                 extra.extend(prov.plant_guards())
         n = self._chunk_n
-        k, X, ib = plan.first_flag(x0, n, tuple(extra))
+        k, X, ib, wspan = plan.first_flag(x0, n, tuple(extra))
         now = self.kernel.now
         if k == 0:
             self._chunk_n = CHUNK_MIN
@@ -109,7 +109,7 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, X, ib)
+        self._traj = ChunkTraj(plan, x0, X, ib, wspan)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()
@@ -196,6 +196,14 @@ class PeriodicDrive:
         best, firing = self._first_passive(guards, after_tick - self._t0)
         return (None, []) if best is None else (self._t0 + best, firing)
 
+    def _passive_span(self):
+        """For a counted run of crossings (:mod:`mcusim.engine.served`): (end tick, wlo, whi) of the
+        current trajectory, a chunk in which wlo ≤ |ω| ≤ whi, or None for any other trajectory."""
+        tr = self._traj
+        if tr is None or tr.kind != "chunk":
+            return None
+        return (self._t0 + tr.periods * tr.plan.P,) + tr.wspan
+
     def _state_ahead(self, tick: int):
         """(i, ω, θ) at ``tick`` ≥ now on the current trajectory, as the observers read it there."""
         n = tick - self._t0
@@ -224,7 +232,7 @@ class PeriodicDrive:
             self._ev_passive = None
             self._served_next(nxt)
         return prov.crossing_stream(self._passive[0][6], ev.time, self._locate_passive, self._state_ahead,
-                                    finish)
+                                    finish, span=self._passive_span)
 
     def _served_next(self, nxt) -> None:
         """Schedule the crossing a served run located after its last one ((tick, direction, guards)
@@ -243,7 +251,7 @@ class PeriodicDrive:
         prov = self._serving_provider()
         stream = None if prov is None else prov.crossing_stream(
             self._passive[0][6], self.kernel.now, self._locate_passive, self._state_ahead, self._served_next,
-            first=True)
+            first=True, span=self._passive_span)
         if stream is not None and served.serve_run(self.kernel, stream):
             return          # the run scheduled what comes next (_served_next)
         for g in self._passive:
