@@ -78,6 +78,25 @@ class Route:
         cpu.served_isrs += 1
         self.form.step(*[levels.get(n, n.level) for n in self.form.nets])
 
+    def charge(self, n: int) -> None:
+        """The handler count and CPU time of ``n`` handler runs (:meth:`serve` without the step)."""
+        if not n:
+            return
+        cpu, v = self.cpu, self.vector
+        cpu.isr_count[v] = cpu.isr_count.get(v, 0) + n
+        cpu.busy_ticks += n * self.ticks
+        cpu.served_isrs += n
+
+    def stepper(self, a, b):
+        """``step(la, lb)``: the form's step with the levels of nets ``a`` and ``b`` given (others
+        as they are now: nothing else moves during a run)."""
+        nets, step = self.form.nets, self.form.step
+        if nets == (a, b):
+            return step
+        if nets == (b, a):
+            return lambda la, lb: step(lb, la)
+        return lambda la, lb: step(*[la if n is a else lb if n is b else n.level for n in nets])
+
 
 def route(net):
     """The :class:`Route` of an edge on ``net`` now, or None when it would not be served."""

@@ -163,11 +163,21 @@ class _Crossings:
         enc = self.enc
         d = self.pending[1]
         k = self.pos
+        ra, rb = self.ra, self.rb
+        step_a, step_b = ra.stepper(enc.a, enc.b), rb.stepper(enc.a, enc.b)
+        la, na = self.la, 0
         for _ in range(m):
             k += d
             qa, qb = _QUAD[(k - enc._slip) & 3]
-            (self.ra if qa != self.la else self.rb).serve({enc.a: qa, enc.b: qb})
-            self.la, self.lb = qa, qb
+            if qa != la:            # A changed: INT on A's pin
+                step_a(qa, qb)
+                na += 1
+                la = qa
+            else:
+                step_b(qa, qb)
+        ra.charge(na)
+        rb.charge(m - na)
+        self.la, self.lb = _QUAD[(k - enc._slip) & 3]
         enc._pos = self.pos = k
         enc._edges += m
         enc.counted_edges += m
