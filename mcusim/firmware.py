@@ -26,7 +26,7 @@ less urgent one instead of taking over its stacking; tail-chaining costs a full 
 from __future__ import annotations
 
 from .errors import McusimError
-from .kernel import PRIO_CPU
+from .kernel import PRIO_CPU, PRIO_DISPATCH
 
 THREAD_PRIO = 1 << 16  # execution priority of thread mode: below every exception (also in irq.py)
 
@@ -132,6 +132,7 @@ class Cpu:
         self.rtos: Rtos | None = None
         self._in_code = False
         self._dispatch_wanted = False
+        self._arbitrating = False   # a dispatch decision is due at the end of this tick's events
         self.isr_count: dict[int, int] = {}
         self.busy_ticks = 0
         self._inline_depth = 0
@@ -229,18 +230,35 @@ class Cpu:
         return self.stack[-1].prio if self.stack else THREAD_PRIO
 
     def request_dispatch(self) -> None:
+        """An interrupt may need taking. From firmware code: when that code returns. From a
+        hardware event: once every hardware and plant event of this tick has run, so that of two
+        interrupts pended at one tick by two events the controller's arbitration picks (the lower
+        IRQ number at equal priority on the NVIC, the lower vector on the AVR), whichever event
+        ran first: at the end of this event if no other one of this tick comes before
+        ``PRIO_DISPATCH``, else in an event of its own there."""
         if self._in_code:
             self._dispatch_wanted = True
-        else:
-            self._dispatch()
+        elif not self._arbitrating:
+            if self.kernel.end_of_event(self._arbitrate):
+                self._arbitrating = True
+            else:
+                self._dispatch()        # outside the run loop (setup, a test's direct call)
 
-    def dispatch_last(self) -> None:
-        """:meth:`request_dispatch` called as the last thing an event does (a SysTick wrap): if the
-        entry of the interrupt taken is then the next event, it is done at once, in this event."""
-        if self._in_code:
-            self._dispatch_wanted = True
-        else:
-            self._dispatch(last=True)
+    # a SysTick wrap pends as the last thing its event does: the same decision
+    dispatch_last = request_dispatch
+
+    def _arbitrate(self) -> None:
+        kernel = self.kernel
+        head = kernel.peek()
+        if head is not None and head[0] == kernel.now and head[1] < PRIO_DISPATCH:
+            kernel.at(kernel.now, self._arbitrated, prio=PRIO_DISPATCH)
+            return
+        self._arbitrating = False
+        self._dispatch(last=not kernel._post)   # the entry may be done in place if nothing follows
+
+    def _arbitrated(self) -> None:
+        self._arbitrating = False
+        self._dispatch(last=True)
 
     def _dispatch(self, last=False) -> None:
         """Take the most urgent pending interrupt if it may preempt what runs. ``last``: the caller

@@ -21,6 +21,9 @@ import heapq
 PRIO_HW = 0
 PRIO_INPUT = 5
 PRIO_PLANT = 10
+# the CPU takes its pick of the interrupts pended at a tick after every hardware and plant event of
+# that tick (firmware.Cpu.request_dispatch), before any firmware code of the tick runs
+PRIO_DISPATCH = 15
 PRIO_CPU = 20
 PRIO_OBSERVE = 30
 
@@ -50,6 +53,8 @@ class Kernel:
         self.events = 0  # events processed
         self.end = None    # while running: run_until's t_end (a CPU core runs no instruction past it)
         self.horizon = -1  # while running: the last tick an event may run at (-1: none, see would_be_next)
+        self._in_event = False
+        self._post = []    # what runs when the event being handled returns (end_of_event)
 
     def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
         if time < self.now:
@@ -58,6 +63,14 @@ class Kernel:
         self._seq += 1
         heapq.heappush(self._queue, (time, prio, self._seq, ev))
         return ev
+
+    def end_of_event(self, fn) -> bool:
+        """Call ``fn()`` when the event being handled returns, before the next one; False (and
+        nothing queued) when no event is being handled."""
+        if not self._in_event:
+            return False
+        self._post.append(fn)
+        return True
 
     def after(self, delay: int, fn, *args, prio: int = PRIO_HW) -> Event:
         return self.at(self.now + delay, fn, *args, prio=prio)
@@ -128,11 +141,18 @@ class Kernel:
                     raise RuntimeError(f"internal error: event {ev.fn!r} at tick {time} is before now ({self.now})")
                 self.now = time
                 ev.cancelled = True  # fired events count as done, so cancel() on them is harmless
+                self._in_event = True
                 ev.fn(*ev.args)
+                post = self._post
+                while post:
+                    post.pop(0)()
+                self._in_event = False
                 n += 1
                 if stop is not None and stop():
                     return
             self.now = max(self.now, t_end)
         finally:
+            self._in_event = False
+            self._post.clear()
             self.events += n
             self.horizon, self.end = outer, outer_end

@@ -80,6 +80,21 @@ def test_lower_vector_number_wins_and_no_nesting_while_i_is_clear(m):
     assert order == [("INT1", 104), ("INT0", 104 + 50 + 4)]
 
 
+def test_int1_and_int0_at_one_tick_enter_int0_first_whichever_edge_came_first(m):
+    """ATmega328P datasheet, Reset and Interrupt Handling: the lower the vector address, the higher the priority;
+    INT1's and INT0's edges at the same tick, INT1's event first: INT0 is taken first."""
+    order = []
+    m.cpu.vector(1, lambda: order.append(("INT0", m.kernel.now)), cost=50)
+    m.cpu.vector(2, lambda: order.append(("INT1", m.kernel.now)), cost=50)
+    m.irq.set_i(True)
+    m.write8(EICRA, 0b0101)
+    m.write8(EIMSK, 0b11)
+    m.kernel.at(100, m.pin("PD3").drive, 1)
+    m.kernel.at(100, m.pin("PD2").drive, 1)
+    m.kernel.run_until(1000)
+    assert order == [("INT0", 104), ("INT1", 104 + 50 + 4)]
+
+
 def test_edge_arriving_while_flag_pending_is_lost(m):
     hits = []
     m.cpu.vector(1, lambda: hits.append(m.kernel.now), cost=200)

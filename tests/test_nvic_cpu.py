@@ -68,6 +68,34 @@ def test_equal_priority_does_not_preempt_and_tail_chains(m):
     assert log == [("a", 12), ("b", 12 + 100 + 12)]
 
 
+@pytest.mark.parametrize("order", [(30, 29), (29, 30)])
+def test_two_equal_priority_interrupts_pended_at_one_tick_enter_the_lower_irq_number_first(m, order):
+    """NVIC arbitration (ARMv7-M ARM B1.5.4): of pending exceptions with the same group priority,
+    the lowest exception number is taken first. Two peripherals' events pend IRQ 30 and IRQ 29 at
+    the same tick: 29 enters first whichever event ran first (TIM3 before TIM4 when two encoder
+    counters wrap at one tick; it once went by the order of the events)."""
+    log = []
+    for n in (29, 30):
+        m.cpu.vector(n, lambda n=n: log.append((n, m.kernel.now)), cost=40)
+        enable(m, n, 5)
+    for n in order:
+        m.kernel.at(500, m.nvic.set_pending, n)
+    m.kernel.run_until(2000)
+    assert log == [(29, 512), (30, 512 + 40 + 12)]
+
+
+def test_a_more_urgent_interrupt_pended_later_in_the_tick_is_taken_first(m):
+    log = []
+    m.cpu.vector(40, lambda: log.append((40, m.kernel.now)), cost=40)
+    m.cpu.vector(41, lambda: log.append((41, m.kernel.now)), cost=40)
+    enable(m, 40, 6)
+    enable(m, 41, 1)
+    m.kernel.at(500, m.nvic.set_pending, 40)
+    m.kernel.at(500, m.nvic.set_pending, 41, prio=10)       # a plant event of the same tick
+    m.kernel.run_until(2000)
+    assert log == [(41, 512), (40, 512 + 40 + 12)]
+
+
 def test_task_cycles_are_stretched_by_interrupts(m):
     done = []
 
