@@ -59,6 +59,14 @@ def test_engines_agree_through_over_current_trips(tmp_path):
                       "--set", "bridgeB.I_ocd=2.0", "--set", "/motor1/set_pos=3", "--set", "/motor2/set_pos=-2"])
 
 
+def test_engines_agree_when_both_encoder_counters_wrap_at_one_tick(tmp_path):
+    """Mirror-image set-points: TIM3's and TIM4's counters wrap at the same tick (0.2911 s), and
+    the NVIC takes TIM3 (IRQ 29) before TIM4 (IRQ 30) in both engines, whichever wrap's event ran
+    first (the register logs differed from that read on before the dispatch waited for the tick)."""
+    _agree(tmp_path, ["nucleo-f746", "--duration", "0.3s", "--set", "/motor1/set_pos=-1000",
+                      "--set", "/motor2/set_pos=1000"], vcd=False)
+
+
 @pytest.mark.parametrize("name", ["step_response", "thesis_master_slave"])
 def test_engines_agree_on_nucleo_scenarios_with_lazy_encoder_counting(tmp_path, name):
     """No pin traced: the fast engine counts TIM3/TIM4 lazily from the shaft angle (the firmware's
