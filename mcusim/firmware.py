@@ -132,7 +132,7 @@ class Cpu:
         self.rtos: Rtos | None = None
         self._in_code = False
         self._dispatch_wanted = False
-        self._arbitrating = False   # a dispatch decision is due at the end of this tick's events
+        self._arb_ev = None         # a dispatch decision due at this tick (request_dispatch)
         self.isr_count: dict[int, int] = {}
         self.busy_ticks = 0
         self._inline_depth = 0
@@ -230,19 +230,29 @@ class Cpu:
         return self.stack[-1].prio if self.stack else THREAD_PRIO
 
     def request_dispatch(self) -> None:
-        """An interrupt may need taking. From firmware code: when that code returns. From a
-        hardware event: once every hardware and plant event of this tick has run, so that of two
-        interrupts pended at one tick by two events the controller's arbitration picks (the lower
-        IRQ number at equal priority on the NVIC, the lower vector on the AVR), whichever event
-        ran first: at the end of this event if no other one of this tick comes before
-        ``PRIO_DISPATCH``, else in an event of its own there."""
+        """An interrupt may need taking. From firmware code: when that code returns. Otherwise once
+        every hardware and plant event of this tick has run, so that of two interrupts pended at
+        one tick the controller's arbitration picks (the lower IRQ number at equal priority on the
+        NVIC, the lower vector on the AVR), whichever was pended first: at the end of this event if
+        no other event of this tick comes before ``PRIO_DISPATCH``, else (or outside the run loop:
+        a host driving a pin between runs) in an event of its own there."""
         if self._in_code:
             self._dispatch_wanted = True
-        elif not self._arbitrating:
-            if self.kernel.end_of_event(self._arbitrate):
-                self._arbitrating = True
-            else:
-                self._dispatch()        # outside the run loop (setup, a test's direct call)
+            return
+        ev = self._arb_ev
+        if ev is not None and not ev.cancelled:
+            return                      # the decision is already due at this tick
+        kernel = self.kernel
+        if kernel._in_event:
+            if self._arbitrate in kernel._post:
+                return
+            if kernel.end_of_event(self._arbitrate):
+                return
+            self._dispatch()            # in the middle of work done in place: at its tick
+            return
+        best = self.nvic.best_pending()
+        if best is not None and best[0] < self.current_priority():
+            self._arb_ev = kernel.at(kernel.now, self._arbitrated, prio=PRIO_DISPATCH)
 
     # a SysTick wrap pends as the last thing its event does: the same decision
     dispatch_last = request_dispatch
@@ -251,13 +261,11 @@ class Cpu:
         kernel = self.kernel
         head = kernel.peek()
         if head is not None and head[0] == kernel.now and head[1] < PRIO_DISPATCH:
-            kernel.at(kernel.now, self._arbitrated, prio=PRIO_DISPATCH)
+            self._arb_ev = kernel.at(kernel.now, self._arbitrated, prio=PRIO_DISPATCH)
             return
-        self._arbitrating = False
-        self._dispatch(last=not kernel._post)   # the entry may be done in place if nothing follows
+        self._dispatch(last=True)       # in place only if nothing else is due first (would_be_next)
 
     def _arbitrated(self) -> None:
-        self._arbitrating = False
         self._dispatch(last=True)
 
     def _dispatch(self, last=False) -> None:

@@ -54,6 +54,7 @@ class Kernel:
         self.end = None    # while running: run_until's t_end (a CPU core runs no instruction past it)
         self.horizon = -1  # while running: the last tick an event may run at (-1: none, see would_be_next)
         self._in_event = False
+        self._event_time = None
         self._post = []    # what runs when the event being handled returns (end_of_event)
 
     def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
@@ -66,8 +67,9 @@ class Kernel:
 
     def end_of_event(self, fn) -> bool:
         """Call ``fn()`` when the event being handled returns, before the next one; False (and
-        nothing queued) when no event is being handled."""
-        if not self._in_event:
+        nothing queued) when no event is being handled, or when the event has moved ``now`` on
+        from its own tick (work done in place of a later event: ``fn`` would run late)."""
+        if not self._in_event or self.now != self._event_time:
             return False
         self._post.append(fn)
         return True
@@ -78,7 +80,7 @@ class Kernel:
     def would_be_next(self, time: int, prio: int) -> bool:
         """True if an event scheduled now at (``time``, ``prio``) would be the next one run, within
         the current ``run_until`` (never when it has a ``stop`` check, which runs between events)."""
-        if time > self.horizon:
+        if time > self.horizon or self._post:   # what runs at the end of this event runs first
             return False
         q = self._queue
         while q:
@@ -142,6 +144,7 @@ class Kernel:
                 self.now = time
                 ev.cancelled = True  # fired events count as done, so cancel() on them is harmless
                 self._in_event = True
+                self._event_time = time
                 ev.fn(*ev.args)
                 post = self._post
                 while post:

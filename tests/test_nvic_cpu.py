@@ -96,6 +96,64 @@ def test_a_more_urgent_interrupt_pended_later_in_the_tick_is_taken_first(m):
     assert log == [(41, 512), (40, 512 + 40 + 12)]
 
 
+def test_an_interrupt_pended_on_another_cpu_by_a_handler_run_in_place_enters_at_that_tick():
+    """CPU A's handler (entered and returned in place of events) pends IRQ 3 on CPU B, as a GPIO
+    wired to B's EXTI would: B enters 12 cycles after the pend, whether or not an unrelated event
+    lies between (the arbitration hook must not wait for A's whole in-place chain)."""
+    def run(extra_event):
+        tb = TimeBase([1_000_000])
+        k = Kernel(tb)
+        clk = tb.clock("cpu", 1_000_000)
+        na, nb = Nvic(num_irqs=16), Nvic(num_irqs=16)
+        a, b = Cpu(k, clk, na, name="a"), Cpu(k, clk, nb, name="b")
+        log = []
+
+        def ha():
+            log.append(("A", k.now))
+            nb.set_pending(3)
+        a.vector(2, ha, cost=400)
+        b.vector(3, lambda: log.append(("B", k.now)), cost=10)
+        na.enabled.add(2)
+        nb.enabled.add(3)
+        k.at(100, na.set_pending, 2)
+        if extra_event:
+            k.at(300, lambda: None)
+        k.run_until(5000)
+        return log
+    assert run(False) == run(True) == [("A", 112), ("B", 124)]
+
+
+def test_an_exception_inside_an_event_leaves_the_cpu_taking_interrupts(m):
+    """An event pends an interrupt and then raises (a model error, Ctrl-C in a notebook): the
+    decision it left undone does not stop the CPU from taking the next ones."""
+    log = []
+    m.cpu.vector(28, lambda: log.append(m.kernel.now), cost=20)
+    enable(m, 28, 5)
+
+    def pend_and_fail():
+        m.nvic.set_pending(28)
+        raise KeyboardInterrupt
+    m.kernel.at(100, pend_and_fail)
+    with pytest.raises(KeyboardInterrupt):
+        m.kernel.run_until(1000)
+    m.kernel.at(500, m.nvic.set_pending, 28)
+    m.kernel.run_until(2000)
+    assert log == [500 + 12]
+
+
+def test_interrupts_pended_between_runs_at_one_tick_are_arbitrated_too(m):
+    """A host pends IRQ 30 and then IRQ 29 between two runs: 29 enters first when the run resumes."""
+    log = []
+    for n in (29, 30):
+        m.cpu.vector(n, lambda n=n: log.append((n, m.kernel.now)), cost=40)
+        enable(m, n, 5)
+    m.kernel.run_until(500)
+    m.nvic.set_pending(30)
+    m.nvic.set_pending(29)
+    m.kernel.run_until(2000)
+    assert log == [(29, 512), (30, 512 + 40 + 12)]
+
+
 def test_task_cycles_are_stretched_by_interrupts(m):
     done = []
 
@@ -143,8 +201,9 @@ def test_rtos_delay_until_wakes_on_the_systick_and_higher_priority_preempts(m):
 
 def test_pending_interrupt_without_handler_is_a_clear_error(m):
     enable(m, 7, 1)
+    m.nvic.set_pending(7)       # outside the run: decided when the run takes the tick up
     with pytest.raises(McusimError, match="no handler"):
-        m.nvic.set_pending(7)
+        m.kernel.run_until(100)
 
 
 def test_systick_period_is_load_plus_one(m):

@@ -166,6 +166,8 @@ def serve_run(kernel, owner) -> bool:
 
     The run is counted (:func:`_count`) where it can be, else planned crossing by crossing
     (:func:`_plan`)."""
+    if kernel._post:
+        return False            # what this event still has to do at its own tick comes first
     streams = [owner]
     cpus = set(owner.cpus)
     absorbed = set()
@@ -188,8 +190,9 @@ def _count(kernel, streams, barrier) -> bool:
     crossings up to a tick are counted from the shaft angle there (the position its encoder's
     guards would reach: θ is monotone), and only the last one served and the first one left out
     are located. Every handler served returns before the barrier, and the run ends where no handler
-    is in flight, as :func:`_plan` would serve it edge after edge. False if the run is not counted
-    (nothing changed)."""
+    is in flight: every crossing it serves :func:`_plan` would serve too (where INT0's and INT1's
+    handlers cost differently, the window is the costlier one's, so a cheap edge just before the
+    barrier may be left to the next run). False if the run is not counted (nothing changed)."""
     R = kernel.horizon
     if barrier is not None:     # a handler's return at (t, PRIO_CPU) must come before the barrier
         R = min(R, barrier[0] if PRIO_CPU < barrier[1] else barrier[0] - 1)
