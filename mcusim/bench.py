@@ -11,7 +11,7 @@ import statistics
 import time
 
 from .engine import DEFAULT_ENGINE, ENGINES
-from .errors import ConfigError
+from .errors import ConfigError, TimeError
 
 
 def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True) -> dict:
@@ -42,6 +42,13 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
                 raise
             raise ConfigError(f"the bench sends the board profile's {table} command "
                               f"({', '.join(scenario)}) to the firmware: {exc}") from None
+        from .params import fmt_duration
+        try:
+            sim.timebase.ticks(duration)     # exact, as the other commands' --duration
+        except TimeError:
+            sim.close()
+            raise ConfigError(f"--duration {fmt_duration(duration)}: not a whole number of base ticks "
+                              f"(1/{sim.timebase.base_hz} s); try 1s or 100ms") from None
         t0 = time.perf_counter()
         try:
             sim.run(seconds=duration)

@@ -190,6 +190,21 @@ def _part_params(kind, spec: dict, overrides: dict, name: str, where: str) -> di
     return params
 
 
+class _PartError(ConfigError):
+    """A mistake in one part's declaration or wiring: (message, part, its key, terminal, file),
+    so that :func:`build` can name the profile's line."""
+
+    def __str__(self):
+        return f"{self.args[4]}: {self.args[0]}"
+
+
+def _located(profile, where: str, msg: str, table=None, index=None, *key) -> ConfigError:
+    """``msg`` at the profile's line of ``key`` in ``table`` when the profile knows its lines."""
+    if hasattr(profile, "err"):
+        return profile.err(msg, table, index, *key)
+    return ConfigError(f"{where}: {msg}")
+
+
 def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: str,
                 lookup=None) -> dict:
     """Instantiate plant parts in declaration order. ``wiring[part][TERMINAL]`` is the Net of each
@@ -197,17 +212,18 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
     built so far or by ``lookup(name)`` (a system's parts of its boards: ``"mcm1.motor"``)."""
     parts: dict = {}
     declared = {s.get("name") for s in specs}
-    for part in wiring:            # a misspelt part in [pins] first: else it shows as an unwired terminal
+    for part, terms in wiring.items():   # a misspelt part in [pins] first: else it shows as an unwired terminal
         if part not in declared:
-            raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared "
-                              f"(parts: {', '.join(sorted(str(d) for d in declared if d))})")
+            raise _PartError(f"[pins] names part {part!r}, which is not declared "
+                             f"(parts: {', '.join(sorted(str(d) for d in declared if d))})", part, None,
+                             next(iter(terms), None), where)
 
-    def ref(name, who):
+    def ref(name, who, key):
         if name in parts:
             return parts[name]
         found = lookup(name) if lookup is not None else None
         if found is None:
-            raise ConfigError(f"{where}: part {who}: no part {name!r} declared before it")
+            raise _PartError(f"part {who}: no part {name!r} declared before it", who, key, None, where)
         return found
 
     for spec in specs:
@@ -219,12 +235,13 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
         for key in kind.refs:
             if key in spec:
                 v = spec[key]
-                args[key] = [ref(x, name) for x in v] if isinstance(v, list) else ref(v, name)
+                args[key] = [ref(x, name, key) for x in v] if isinstance(v, list) else ref(v, name, key)
         required, optional = kind.terminals
         unknown = set(wiring.get(name, {})) - set(required + optional)
         if unknown:
-            raise ConfigError(f"{where}: part {name} ({kind.name}) has no terminal {', '.join(sorted(unknown))}; "
-                              f"terminals: {', '.join(required + optional) or 'none'}")
+            raise _PartError(f"part {name} ({kind.name}) has no terminal {', '.join(sorted(unknown))}; "
+                             f"terminals: {', '.join(required + optional) or 'none'}", name, None,
+                             min(unknown), where)
         for term in required + optional:
             net = wiring.get(name, {}).get(term)
             if net is None:
@@ -363,12 +380,25 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
 
     # plant parts and wiring
     wiring: dict[str, dict[str, object]] = {}
+    pin_of: dict = {}                   # (part, TERMINAL) -> the [pins] key that wires it
     for pin, target in profile.get("pins", {}).items():
         part, _, terminal = target.partition(".")
-        wiring.setdefault(part, {})[terminal.upper()] = mcu.pin(pin)
+        try:
+            net = mcu.pin(pin)
+        except ConfigError as exc:
+            raise _located(profile, where, f"[pins] {exc}", "pins", None, pin) from None
+        wiring.setdefault(part, {})[terminal.upper()] = net
+        pin_of[(part, terminal.upper())] = pin
     for part, terms in (external or {}).items():
         wiring.setdefault(part, {}).update({t.upper(): net for t, net in terms.items()})
-    parts = build_parts(kernel, profile.get("part", []), part_overrides, wiring, where)
+    try:
+        parts = build_parts(kernel, profile.get("part", []), part_overrides, wiring, where)
+    except _PartError as exc:
+        msg, name, key, term, _ = exc.args
+        if term is not None and (name, term) in pin_of:
+            raise _located(profile, where, msg, "pins", None, pin_of[(name, term)]) from None
+        index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
+        raise _located(profile, where, msg, "part", index, *((key,) if key else ())) from None
     # [analog]: an MCU analog input follows a part's analog output (IBT-2 R_IS -> A0)
     for net_name, target in profile.get("analog", {}).items():
         part_name, _, terminal = target.partition(".")

@@ -363,12 +363,18 @@ def cmd_run(args) -> int:
         if sim.timebase.ticks(duration, rounding=True) == 0:
             raise ConfigError(f"--duration {fmt_duration(duration)}: shorter than one base tick "
                               f"(1/{sim.timebase.base_hz} s)")
+        # times given on the command line are exact, as in scenarios: one off the base tick is refused
+        checks = [("--duration", duration, "try 10ms or 2s")]
         if files.get("csv") or files.get("plot"):
+            checks.append(("--sample", args.sample, "try 1ms or 100us"))
+        if "vcd" in files:
+            checks.append(("--vcd-sample", args.vcd_sample, "try 50us or 1ms"))
+        for opt, value, hint in checks:
             try:
-                sim.timebase.ticks(args.sample)
+                sim.timebase.ticks(value)
             except TimeError:
-                raise ConfigError(f"--sample {fmt_duration(args.sample)}: not a whole number of base ticks "
-                                  f"(1/{sim.timebase.base_hz} s); try 1ms or 100us") from None
+                raise ConfigError(f"{opt} {fmt_duration(value)}: not a whole number of base ticks "
+                                  f"(1/{sim.timebase.base_hz} s); {hint}") from None
         gdb = None
         if args.gdb is not None:
             from .elf.gdb import GdbServer
@@ -434,6 +440,8 @@ def cmd_run(args) -> int:
             print(f"plot written to {args.plot}")
         if args.summary:
             print(f"summary written to {args.summary}")
+        if getattr(args, "register_log", None) not in (None, "-"):
+            print(f"register log written to {args.register_log}")
     failed = []
     if scenario is not None and scenario.failed:
         failed.append("a scenario expectation failed")

@@ -82,10 +82,10 @@ def read_profile_text(data: bytes, where: str) -> Profile:
 
 
 def _frequency(prof, value, what, *path):
-    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
-        raise prof.err(f"{what} = {_show(value)}: expected a frequency such as \"216MHz\"", *path)
-    if isinstance(value, float) and not math.isfinite(value):
-        raise prof.err(f"{what} = {_show(value)}: expected a finite frequency", *path)
+    # frequencies take units, as durations do: a bare number ("216", 216) is refused, not read as Hz
+    if isinstance(value, bool) or not isinstance(value, str) or not value.strip().lower().endswith("hz"):
+        raise prof.err(f"{what} = {_show(value)}: a frequency with a unit, such as \"216MHz\" "
+                       "(a bare number is refused)", *path)
     try:
         hz = parse_frequency(value)
     except TimeError as exc:

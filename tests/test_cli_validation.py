@@ -61,6 +61,9 @@ def test_values_are_checked_against_their_declared_range(capsys, board, key, nee
     (["--duration", "1ms", "--vcd-sample", "1ps", "--vcd", "x.vcd"], "the finest sampling grid is 1us"),
     (["--duration", "1ms", "--sample", "1ns", "--csv", "x.csv"], "the finest sampling grid is 1us"),
     (["--duration", "1ms", "--sample", "1.0000001ms", "--csv", "x.csv"], "--sample 1.0000001ms: not a whole"),
+    # times on the command line are exact, as in scenarios (216 MHz: 1.0000001 ms is 216000.0216 ticks)
+    (["--duration", "1.0000001ms"], "--duration 1.0000001ms: not a whole number of base ticks"),
+    (["--duration", "1ms", "--vcd-sample", "1.0000001us", "--vcd", "x.vcd"], "--vcd-sample 1.0000001us: not a whole"),
     (["--duration", "1ms", "--register-log", "r.jsonl", "--register-log-filter", ""], "is empty"),
     (["--duration", "1ms", "--register-log-filter", "TIM1"], "needs --register-log"),
     (["--duration", "1ms", "--no-firmware", "--set", "/motor1/set_pos=1"], "runs without firmware"),
@@ -72,6 +75,17 @@ def test_command_line_mistakes_are_one_line_and_exit_2(tmp_path, monkeypatch, ca
     monkeypatch.chdir(tmp_path)
     _usage_error(capsys, ["run", "nucleo-f746", *args], needle)
     assert sorted(os.listdir(tmp_path)) == []             # nothing written, not even a temporary file
+
+
+def test_bench_refuses_a_duration_off_the_base_tick(capsys):
+    _usage_error(capsys, ["bench", "pro-mini", "--duration", "10.00001ms", "--repeat", "1"],
+                 "--duration 10.00001ms: not a whole number of base ticks")
+
+
+def test_a_register_log_file_is_announced_like_the_other_outputs(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "nucleo-f746", "--duration", "1ms", "--register-log", "r.jsonl"]) == 0
+    assert "register log written to r.jsonl" in capsys.readouterr().out
 
 
 def test_the_duration_limit_can_be_raised_with_a_flag(capsys):
