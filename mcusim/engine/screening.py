@@ -34,6 +34,9 @@ from ..plant import pwl
 from . import periodmap
 from .periodmap import PowerTable
 
+#: screen chunks of stuck pieces at their ends only (PeriodPlan._stuck_ends); off: every period
+STUCK_ENDS = True
+
 #: relative safety margin of a screened guard value (far above the maps' float rounding, ~1e-15 in
 #: delta form, and the screening's own numpy rounding)
 MARGIN = 1e-9
@@ -114,6 +117,10 @@ class PeriodPlan:
                 self._screens.clear()
             arrays = self._screens[extra_guards] = self._guard_arrays(extra_guards)
         G, aGd, aGth, aGx, aG0, mono = arrays
+        if STUCK_ENDS and n > 2 and self._stuck.all() and (mono is None or not (mono * aGd.any(axis=1, keepdims=True)).any()):
+            clean = self._stuck_ends(X, n, G, aGx, aG0)
+            if clean is not None:
+                return clean
         npc = len(self.pieces)
         # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
         Xn = X[:n]
@@ -143,6 +150,36 @@ class PeriodPlan:
         w = xb[:, :k, 1]
         wlo = float((np.abs(S[:, :k, 1]) - self._tau[:, :, 0] * D[:, :k, 1]).min())
         return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(w.max()))
+
+    def _stuck_ends(self, X, n: int, G, aGx, aG0):
+        """A chunk whose pieces are all stuck, each guard either without a θ term or on θ alone:
+        screened at its first and last period only, or None if a guard may fire there.
+
+        Stuck (ω held at 0, θ held), the current is the only state that moves: in each piece one
+        exponential towards the piece's steady value, so over a period ``i ← a·i + b`` with
+        0 < a < 1. The current at the period starts is then monotone in k (it closes in on the
+        fixed point geometrically), and so is the current at each piece start and end (affine in it
+        with a positive factor), and every guard (affine in i, θ and ω constant) with it; inside a
+        piece it is monotone in t. So a guard positive, beyond the largest rounding margin of the
+        two periods, at both ends of every piece in the first and the last period is positive
+        everywhere in between. The full screening tests such guards at the piece ends alone too
+        (no Lipschitz term: monotone, or on θ alone, which ω = 0 holds), so it would find the
+        same (k = n), and its bounds of
+        |i| and |ω| are the two periods' too (|·| of a monotone sequence peaks at an end). Holding a
+        position (static friction, the PID moving the duty every step) is all such chunks."""
+        npc = len(self.pieces)
+        ends = X[[0, n - 1]]
+        St = np.empty((npc + 1, 2, 4))
+        St[0] = ends
+        if npc > 1:
+            St[1:npc] = (ends @ self._QTcat).reshape(2, npc - 1, 4).swapaxes(0, 1) + ends
+        St[npc] = X[[1, n]]
+        S, E = St[:-1], St[1:]
+        big = np.maximum(np.abs(S[:, :, :3]), np.abs(E[:, :, :3]))      # (pieces, 2, 3)
+        scale = (big.max(axis=1, keepdims=True) @ aGx + aG0) * MARGIN
+        if not ((S @ G > scale).all() and (E @ G > scale).all()):
+            return None
+        return n, X[:n + 1], float(big[:, :, 0].max()), (0.0, float(big[:, :, 1].max()))
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`

@@ -1,0 +1,78 @@
+"""A chunk of stuck pieces is screened at its first and last period only (``PeriodPlan._stuck_ends``):
+wherever that says "clean", the full screening of every period must say the same, with the same
+states and bounds. The plans and states are the nucleo-f746's own while it holds a position (static
+friction, the PID moving the duty every step), and hypothesis moves the current and the horizon
+about them, up to and across the guards (breakaway, current reaching zero)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import mcusim
+from mcusim.engine import screening
+
+
+@pytest.fixture(scope="module")
+def held_plans():
+    """(plan, x0, n, extra guards) of every all-stuck screening in 0.3 s of a nucleo-f746 hold."""
+    calls = []
+    full = screening.PeriodPlan.first_flag
+
+    def spy(self, x0, n, extra):
+        if self._stuck.all():
+            calls.append((self, tuple(x0), n, extra))
+        return full(self, x0, n, extra)
+    sim = mcusim.load("nucleo-f746", overrides={"/motor1/set_pos": 1.0, "/motor2/set_pos": -0.5})
+    sim.run(seconds=0.5)                        # moves, then holds
+    screening.PeriodPlan.first_flag = spy
+    try:
+        sim.run(seconds=0.3)
+    finally:
+        screening.PeriodPlan.first_flag = full
+    assert len(calls) > 50
+    return calls
+
+
+def _both(plan, x0, n, extra):
+    screening.STUCK_ENDS = False
+    try:
+        full = plan.first_flag(x0, n, extra)
+    finally:
+        screening.STUCK_ENDS = True
+    return plan.first_flag(x0, n, extra), full
+
+
+def _same(fast, full):
+    assert fast[0] == full[0]
+    assert np.array_equal(fast[1], full[1])
+    assert fast[2] == pytest.approx(full[2], rel=1e-12, abs=1e-300)
+    assert fast[3] == pytest.approx(full[3], rel=1e-12, abs=1e-300)
+
+
+def test_the_ends_of_a_held_chunk_decide_as_every_period_does(held_plans):
+    shortcut = 0
+    for plan, x0, n, extra in held_plans:
+        fast, full = _both(plan, x0, n, extra)
+        _same(fast, full)
+        shortcut += plan._stuck_ends(plan.table.augmented_states(x0, n), n, *_arrays(plan, extra)) is not None
+    assert shortcut > 0.9 * len(held_plans)     # holding, nearly every chunk is settled at its ends
+
+
+def _arrays(plan, extra):
+    G, _, _, aGx, aG0, _ = plan._screens[extra]
+    return G, aGx, aG0
+
+
+@settings(max_examples=300, deadline=None)
+@given(pick=st.integers(0, 10**6), di=st.floats(-20.0, 20.0), scale=st.floats(0.0, 3.0),
+       n=st.sampled_from([3, 4, 17, 64, 256, 512]))
+def test_a_held_chunk_moved_towards_its_guards_still_decides_as_every_period_does(held_plans, pick, di, scale, n):
+    """The current moved by up to ±20 A and scaled (towards the breakaway threshold and across
+    zero), and horizons from 3 to 512 periods: the ends either decline or agree exactly."""
+    plan, x0, _, extra = held_plans[pick % len(held_plans)]
+    x = (x0[0] * scale + di, x0[1], x0[2])
+    fast, full = _both(plan, x, n, extra)
+    _same(fast, full)
