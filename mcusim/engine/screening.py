@@ -95,6 +95,10 @@ class PeriodPlan:
             At.append(((a00, a10), (a01, a11)))
             us.append((absu,))
         self._stuck = np.array([pc[6][1] == 0 for pc in pieces])[:, None, None]
+        # every piece stuck: over a period only the current moves, i ← a·i + b (``_held_states``)
+        t00, t03 = float(self.T[0, 0]), float(self.T[0, 3])
+        self._held = ((math.log1p(t00), t03 / t00) if self._stuck.all() and -1.0 < t00 < 0.0
+                      and not self.T[0, 1:3].any() and not self.T[1].any() else None)
         if self._bounded:   # per piece, stacked (first_flag screens all pieces of all periods at once)
             self._Wt, self._w, self._tau = np.array(Wt), np.array(w), np.array(taus)
             self._At, self._u = np.array(At), np.array(us)
@@ -108,7 +112,9 @@ class PeriodPlan:
         fires in n periods), the states X[0..k] at the period starts (rows (i, ω, θ, 1)), a bound of
         |i| over those k periods (at least as large as the largest |i| in them), and bounds of |ω|
         there (wlo ≤ |ω| ≤ whi)."""
-        X = self.table.augmented_states(x0, n)   # (n+1, 4)
+        X = self._held_states(x0, n) if self._held is not None and x0[1] == 0.0 else None
+        if X is None:
+            X = self.table.augmented_states(x0, n)   # (n+1, 4)
         if not self._bounded or n == 0:
             return 0, X[:1], 0.0, (0.0, 0.0)
         arrays = self._screens.get(extra_guards)
@@ -150,6 +156,20 @@ class PeriodPlan:
         w = xb[:, :k, 1]
         wlo = float((np.abs(S[:, :k, 1]) - self._tau[:, :, 0] * D[:, :k, 1]).min())
         return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(w.max()))
+
+    def _held_states(self, x0, n: int):
+        """Rows (i, ω, θ, 1) after k = 0..n periods of a plan whose pieces are all stuck, from a
+        shaft at rest: ω stays 0, θ stays, and the current closes in on its periodic value i* as
+        ``i_k = i0 + (a^k − 1)·(i0 − i*)``, with ``a^k − 1 = expm1(k·log1p(a − 1))`` (the period
+        map's delta entry, to full precision as the power table's delta form keeps it). Holding a
+        position, every PID step builds such a plan: the power table's n products are not needed."""
+        la, r = self._held             # log1p(a − 1), b / (a − 1) = −i*
+        X = np.empty((n + 1, 4))
+        X[:, 0] = x0[0] + np.expm1(np.arange(n + 1) * la) * (x0[0] + r)
+        X[:, 1] = 0.0
+        X[:, 2] = x0[2]
+        X[:, 3] = 1.0
+        return X
 
     def _stuck_ends(self, X, n: int, G, aGx, aG0):
         """A chunk whose pieces are all stuck, each guard either without a θ term or on θ alone:
