@@ -243,6 +243,19 @@ def _run_sets(args) -> dict:
     return {**demo, **user}
 
 
+def _in_run_set(args, sets: dict, exc: ConfigError) -> ConfigError:
+    """``exc`` located at the board file's line when it is about a key of its ``[run.set]`` demo
+    command (the user did not give that key): the mistake is in the file, not on the command line."""
+    from .board import read_profile
+    msg = str(exc)
+    user = dict(args.sets)
+    profile = read_profile(args.board)[0]
+    for key in profile.get("run", {}).get("set", {}):
+        if key in sets and key not in user and (msg.startswith(key) or repr(key) in msg) and hasattr(profile, "err"):
+            return profile.err(f"[run.set] {msg}", "run", None, "set", key)
+    return exc
+
+
 def _build(args, scenario, log_target):
     """The simulation a ``run``/``trace`` asks for (a scenario's board and [set], or the profile's
     demo command), with the register log attached from reset when one is asked for."""
@@ -263,8 +276,12 @@ def _build(args, scenario, log_target):
                     sim.discard()
                     raise
             else:
-                sim = load(args.board, firmware=_firmware(args), overrides=_run_sets(args), strict=args.strict,
-                           engine=args.engine)
+                sets = _run_sets(args)
+                try:
+                    sim = load(args.board, firmware=_firmware(args), overrides=sets, strict=args.strict,
+                               engine=args.engine)
+                except ConfigError as exc:
+                    raise _in_run_set(args, sets, exc) from None
         except BaseException:
             if startup is not None:
                 release(startup)

@@ -77,6 +77,8 @@ def test_a_profile_cannot_name_a_python_object_to_import(tmp_path, capsys):
     ('motor = "motor1"', 'motor = "motor7"', "part bridgeA: no part 'motor7' declared before it"),
     ('PE9 = "bridgeA.IN1"', 'PE9 = "bridgeX.IN1"', "[pins] names part 'bridgeX', which is not declared"),
     ('PE9 = "bridgeA.IN1"', 'PE9 = "bridgeA.Q"', "part bridgeA (l6206) has no terminal Q"),
+    ('"/motor1/set_pos" = 1.57', '"/motor1/set_pos" = "abc"', "[run.set] /motor1/set_pos = 'abc': expected a number"),
+    ('"/motor1/set_pos" = 1.57', '"/motor9/set_pos" = 1.57', "[run.set] no subscribed topic '/motor9/set_pos'"),
     ('counter_bits = 32', 'counter_bits = 24', "counter_bits = 24: expected one of 16, 32"),
     ('irqs = { update = 29, cc = 29 }', 'irqs = { update = 999, cc = 29 }', "update = 999: must be from 0 to 495"),
     ('irqs = { update = 29, cc = 29 }', 'irqs = { update = 120, cc = 29 }', "interrupt 120 is not one of the core's 98"),
