@@ -50,8 +50,11 @@ class PeriodPlan:
     ``absA``/``absu`` the absolute values of the piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
     """
 
-    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int, formers=None):
+    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int, formers=None, guard_cache=None):
         self.pieces = pieces
+        # guard arrays by (each piece's guards, the extra guards, which pieces are stuck), shared by
+        # the plans of one motor: a PID moving the duty builds a plan at every step, same guards
+        self.guard_cache = {} if guard_cache is None else guard_cache
         # per piece, the closed form of the piece from a start state (a pwl.Traj): the motor's
         # segment builder bound to the piece's drive, mode and the plan's parameters
         self.formers = formers
@@ -121,7 +124,16 @@ class PeriodPlan:
         if arrays is None:
             if len(self._screens) > 16:
                 self._screens.clear()
-            arrays = self._screens[extra_guards] = self._guard_arrays(extra_guards)
+            # the same guards in the same modes make the same arrays, whatever the pieces' lengths:
+            # a PID moving the duty builds a new plan at every step, with the guards of the last
+            shared = self.guard_cache
+            key = (tuple(pc[4] for pc in self.pieces), extra_guards, tuple(self._stuck.ravel().tolist()))
+            arrays = shared.get(key)
+            if arrays is None:
+                if len(shared) >= 64:
+                    shared.clear()
+                arrays = shared[key] = self._guard_arrays(extra_guards)
+            self._screens[extra_guards] = arrays
         G, aGd, aGth, aGx, aG0, mono = arrays
         if STUCK_ENDS and n > 2 and self._stuck.all() and (mono is None or not (mono * aGd.any(axis=1, keepdims=True)).any()):
             clean = self._stuck_ends(X, n, G, aGx, aG0)
