@@ -88,3 +88,22 @@ def test_a_held_chunks_current_in_closed_form_is_the_power_tables_to_the_roundin
         a, b = plan._held_states(x0, 512), plan.table.augmented_states(x0, 512)
         assert np.array_equal(a[:, 1:], b[:, 1:])          # ω, θ held exactly
         assert np.abs(a[:, 0] - b[:, 0]).max() <= 4e-15 * np.abs(b[:, 0]).max()
+
+
+@settings(max_examples=150, deadline=None)
+@given(pick=st.integers(0, 10**6), di=st.floats(-20.0, 20.0), scale=st.floats(0.0, 3.0),
+       n=st.sampled_from([3, 17, 256, 512]))
+def test_a_held_chunk_is_screened_alike_from_closed_form_and_power_table_states(held_plans, pick, di, scale, n):
+    """The screening's answer does not depend on where the held plan's period-start states come
+    from: the same first flagged period, states within 4e-15 of the current's scale."""
+    plan, x0, _, extra = held_plans[pick % len(held_plans)]
+    x = (x0[0] * scale + di, x0[1], x0[2])
+    closed = plan.first_flag(x, n, extra)
+    held, plan._held = plan._held, None
+    try:
+        table = plan.first_flag(x, n, extra)
+    finally:
+        plan._held = held
+    assert closed[0] == table[0]
+    assert np.abs(closed[1] - table[1]).max() <= 4e-15 * max(1.0, np.abs(table[1][:, 0]).max())
+    assert closed[2] == pytest.approx(table[2], rel=1e-12, abs=1e-300)

@@ -8,7 +8,8 @@ zero, breakaway, the bridge's over-current or current limit, encoder thresholds)
 once:
 
 * the states at the start and end of every piece of every period come from the power table (one
-  matrix product per piece);
+  matrix product per piece), or, for a plan whose pieces are all stuck, from the current's
+  closed form (``_held_states``);
 * inside a piece of τ seconds starting at x, ``|x(t)|`` is bounded component-wise by
   ``x̄ = (I − τ|A|)⁻¹(|x| + τ|u|)`` and so ``|ẋ| ≤ D = |A|·x̄ + |u|``; a guard h = c·x + c0 that is
   positive at both ends with ``h_start + h_end > τ·|c|·D`` cannot reach zero inside (a Lipschitz
@@ -16,6 +17,9 @@ once:
 * in a stuck piece (ω held) the current is a single exponential, so a guard without a θ term is
   monotone there and positive ends suffice; |i| and |ω| there are bounded by their values at the
   piece's ends, whatever its length.
+
+A chunk whose pieces are all stuck is screened at its first and last period only
+(``_stuck_ends``: every guard is monotone there).
 
 The first period in which any guard *may* fire ends the chunk: the motor advances to its start
 with the period map's power and runs that period piece by piece, exactly as the edge-by-edge engine
@@ -197,7 +201,8 @@ class PeriodPlan:
         everywhere in between. The full screening tests such guards at the piece ends alone too
         (no Lipschitz term: monotone, or on θ alone, which ω = 0 holds), so it would find the
         same (k = n), and its bounds of
-        |i| and |ω| are the two periods' too (|·| of a monotone sequence peaks at an end). Holding a
+        |i| and |ω| are the two periods' too, to the last bit (|·| of a monotone sequence peaks at
+        an end; the computed currents are monotone to rounding, and the bound gets a margin). Holding a
         position (static friction, the PID moving the duty every step) is all such chunks."""
         npc = len(self.pieces)
         ends = X[[0, n - 1]]
