@@ -40,8 +40,12 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
         except ConfigError as exc:
             if firmware is None or not scenario:
                 raise
-            raise ConfigError(f"the bench sends the board profile's {table} command "
-                              f"({', '.join(scenario)}) to the firmware: {exc}") from None
+            msg = (f"the bench sends the board profile's {table} command ({', '.join(scenario)}) to the "
+                   f"firmware: {exc}")
+            key = next((k for k in scenario if str(exc).startswith(k) or repr(k) in str(exc)), None)
+            if key is not None and hasattr(profile, "err"):      # the mistake is in the file: its line
+                raise profile.err(msg, table.strip("[]").split(".")[0], None, "set", key) from None
+            raise ConfigError(msg) from None
         from .params import fmt_duration
         try:
             sim.timebase.ticks(duration)     # exact, as the other commands' --duration

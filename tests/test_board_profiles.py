@@ -107,6 +107,17 @@ def test_profile_mistakes_name_the_file_and_line(tmp_path, capsys, old, new, nee
         assert f"b.toml:{line}: " in err, (line, err)
 
 
+def test_a_bad_bench_command_names_the_board_files_line(tmp_path, capsys):
+    text = shipped_text("pro-mini")
+    old = "[bench.set]\nvelocity = 20"
+    assert old in text
+    p = tmp_path / "b.toml"
+    p.write_text(text.replace(old, '[bench.set]\nvelocity = "fast"', 1))
+    err = _err(capsys, ["bench", str(p), "--duration", "10ms", "--repeat", "1"])
+    line = text[:text.index(old)].count("\n") + 2
+    assert f"b.toml:{line}: " in err and "velocity = 'fast': expected a number" in err, err
+
+
 def test_every_shipped_profile_passes_the_schema_and_builds():
     for name in board_names():
         sim = mcusim.load(name)
