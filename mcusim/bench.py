@@ -12,6 +12,7 @@ import time
 
 from .engine import DEFAULT_ENGINE, ENGINES
 from .errors import ConfigError, TimeError
+from .params import fmt_duration
 
 
 def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True) -> dict:
@@ -46,7 +47,6 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
             if key is not None and hasattr(profile, "err"):      # the mistake is in the file: its line
                 raise profile.err(msg, table.strip("[]").split(".")[0], None, "set", key) from None
             raise ConfigError(msg) from None
-        from .params import fmt_duration
         try:
             sim.timebase.ticks(duration)     # exact, as the other commands' --duration
         except TimeError:

@@ -243,19 +243,13 @@ class Cpu:
         if ev is not None and not ev.cancelled:
             return                      # the decision is already due at this tick
         kernel = self.kernel
-        if kernel._in_event:
-            if self._arbitrate in kernel._post:
-                return
-            if kernel.end_of_event(self._arbitrate):
-                return
-            self._dispatch()            # in the middle of work done in place: at its tick
+        if kernel.in_event:
+            if not kernel.end_of_event(self._arbitrate):
+                self._dispatch()        # in the middle of work done in place: at its tick
             return
         best = self.nvic.best_pending()
         if best is not None and best[0] < self.current_priority():
             self._arb_ev = kernel.at(kernel.now, self._arbitrated, prio=PRIO_DISPATCH)
-
-    # a SysTick wrap pends as the last thing its event does: the same decision
-    dispatch_last = request_dispatch
 
     def _arbitrate(self) -> None:
         kernel = self.kernel

@@ -60,15 +60,12 @@ class Nvic(Peripheral):
         if level:
             self.set_pending(irqn)
 
-    def set_pending(self, irqn: int, last: bool = False) -> None:
-        """Pend ``irqn``. ``last``: the caller's event does nothing after this call (the CPU may
-        then take the interrupt's entry in the same event, see ``Cpu.dispatch_last``)."""
+    def set_pending(self, irqn: int) -> None:
+        """Pend ``irqn`` (the CPU decides at the end of the tick's hardware events, and may take
+        the entry in place then: ``Cpu.request_dispatch``)."""
         self.pending.add(irqn)
         if self.cpu is not None:
-            if last:
-                self.cpu.dispatch_last()
-            else:
-                self.cpu.request_dispatch()
+            self.cpu.request_dispatch()
 
     def prio(self, irqn: int) -> int:
         return self.priority.get(irqn, 0)

@@ -65,13 +65,25 @@ class Kernel:
         heapq.heappush(self._queue, (time, prio, self._seq, ev))
         return ev
 
+    @property
+    def in_event(self) -> bool:
+        """An event is being handled (the run loop called it and it has not returned)."""
+        return self._in_event
+
+    @property
+    def end_pending(self) -> bool:
+        """Something is due at the end of the event being handled (:meth:`end_of_event`)."""
+        return bool(self._post)
+
     def end_of_event(self, fn) -> bool:
-        """Call ``fn()`` when the event being handled returns, before the next one; False (and
-        nothing queued) when no event is being handled, or when the event has moved ``now`` on
-        from its own tick (work done in place of a later event: ``fn`` would run late)."""
+        """Call ``fn()`` when the event being handled returns, before the next one (once, however
+        often asked); False (and nothing queued) when no event is being handled, or when the event
+        has moved ``now`` on from its own tick (work done in place of a later event: ``fn`` would
+        run late)."""
         if not self._in_event or self.now != self._event_time:
             return False
-        self._post.append(fn)
+        if fn not in self._post:
+            self._post.append(fn)
         return True
 
     def after(self, delay: int, fn, *args, prio: int = PRIO_HW) -> Event:

@@ -62,7 +62,7 @@ def test_the_ends_of_a_held_chunk_decide_as_every_period_does(held_plans):
 
 
 def _arrays(plan, extra):
-    G, _, _, aGx, aG0, _ = plan._screens[extra]
+    G, _, _, aGx, aG0, _, _ = plan._screens[extra]
     return G, aGx, aG0
 
 

@@ -1,7 +1,7 @@
 """A Cortex-M core running a compiled image (unicorn) on the simulation's kernel and bus.
 
 It implements the CPU interface of :class:`mcusim.firmware.Cpu` that the NVIC drives
-(``request_dispatch``, ``dispatch_last``): the NVIC says an interrupt may need taking, the core
+(``request_dispatch``): the NVIC says an interrupt may need taking, the core
 takes it when the architecture says so. How it runs:
 
 * **Quanta.** The core executes ``emu_start(count=n)`` where n instructions reach up to the next
@@ -233,8 +233,6 @@ class CortexMCore:
         elif self.state == "sleep" and self.exc.wakes():
             self.state = "run"
             self._schedule(max(self.cpu_time, self._aligned(self.kernel.now)))
-
-    dispatch_last = request_dispatch
 
     def current_priority(self) -> int:
         return self.exc.execution_priority()

@@ -138,8 +138,8 @@ class PeriodPlan:
                     shared.clear()
                 arrays = shared[key] = self._guard_arrays(extra_guards)
             self._screens[extra_guards] = arrays
-        G, aGd, aGth, aGx, aG0, mono = arrays
-        if STUCK_ENDS and n > 2 and self._stuck.all() and (mono is None or not (mono * aGd.any(axis=1, keepdims=True)).any()):
+        G, aGd, aGth, aGx, aG0, mono, ends = arrays
+        if STUCK_ENDS and ends and n > 2:
             clean = self._stuck_ends(X, n, G, aGx, aG0)
             if clean is not None:
                 return clean
@@ -199,11 +199,11 @@ class PeriodPlan:
         piece it is monotone in t. So a guard positive, beyond the largest rounding margin of the
         two periods, at both ends of every piece in the first and the last period is positive
         everywhere in between. The full screening tests such guards at the piece ends alone too
-        (no Lipschitz term: monotone, or on θ alone, which ω = 0 holds), so it would find the
-        same (k = n), and its bounds of
-        |i| and |ω| are the two periods' too, to the last bit (|·| of a monotone sequence peaks at
-        an end; the computed currents are monotone to rounding, and the bound gets a margin). Holding a
-        position (static friction, the PID moving the duty every step) is all such chunks."""
+        (no Lipschitz term: monotone, or on θ alone, which ω = 0 holds), so it would find the same
+        (k = n), and its bounds of |i| and |ω| are the two periods' too, to the last bit (|·| of a
+        monotone sequence peaks at an end; the computed currents are monotone to rounding, and the
+        bound gets a margin). Holding a position (static friction, the PID moving the duty every
+        step) is all such chunks."""
         npc = len(self.pieces)
         ends = X[[0, n - 1]]
         St = np.empty((npc + 1, 2, 4))
@@ -235,7 +235,10 @@ class PeriodPlan:
         mono = None
         if self._stuck.any():
             mono = np.where(self._stuck[:, :, 0] & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
-        return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4], mono
+        # every piece stuck and every guard either without a θ term or on θ alone: the chunk's two
+        # end periods decide it (_stuck_ends)
+        ends = bool(self._stuck.all() and not (mono * aGt[:, :2].any(axis=1, keepdims=True)).any())
+        return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4], mono, ends
 
     def states_at_piece_starts(self, x0, k: int):
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""

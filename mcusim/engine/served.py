@@ -166,7 +166,7 @@ def serve_run(kernel, owner) -> bool:
 
     The run is counted (:func:`_count`) where it can be, else planned crossing by crossing
     (:func:`_plan`)."""
-    if kernel._post:
+    if kernel.end_pending:
         return False            # what this event still has to do at its own tick comes first
     streams = [owner]
     cpus = set(owner.cpus)

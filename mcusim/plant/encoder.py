@@ -35,166 +35,9 @@ from ..engine import served
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from ..signals import Net
+from .encoder_served import Crossings
 
 _QUAD = ((0, 0), (1, 0), (1, 1), (0, 1))
-
-
-class _Crossings:
-    """An encoder's crossings as a stream of served edges (``served.serve_run``): ``plan`` one
-    after the other from the planned position and output levels, ``commit`` the ones served."""
-
-    __slots__ = ("K", "cpus", "enc", "la", "last", "lb", "locate", "nxt", "on_finish", "pending", "pos", "ra",
-                 "rb", "span", "state_at", "t_max", "wlo")
-
-    def __init__(self, enc, direction, tick, locate, state_at, ra, rb, on_finish, span=None):
-        self.enc, self.locate, self.state_at, self.on_finish = enc, locate, state_at, on_finish
-        self.span = span
-        self.t_max = None           # a counted run's window (count_bound)
-        self.ra, self.rb = ra, rb
-        self.cpus = frozenset((ra.cpu, rb.cpu))
-        self.pending = (tick, direction)
-        self.pos, self.la, self.lb = enc._pos, enc.a.level, enc.b.level
-        self.last = None        # the last crossing committed
-
-    def plan(self, t, d):
-        """The crossing at tick ``t`` in direction ``d`` as a served edge, or None if it is not one
-        edge of one output (more than one threshold in the tick, or both outputs change)."""
-        enc = self.enc
-        st = enc.step
-        th = self.state_at(t)[2]
-        k = self.pos + d
-        if (th >= (k + 1) * st) if d > 0 else (th < k * st):
-            return None         # more than one threshold in this tick: on_guard's loop
-        qa, qb = _QUAD[(k - enc._slip) & 3]
-        if (qa != self.la) == (qb != self.lb):
-            return None         # not exactly one output changes (after a glitch)
-        route = self.ra if qa != self.la else self.rb
-        nt, firing = self.locate(enc._guards_at(k), t)
-        self.pos, self.la, self.lb = k, qa, qb
-        return served.Item(self, t, route.returns(t), None if nt is None else (nt, firing[0][6], firing),
-                           (k, qa, qb, route))
-
-    def commit(self, item):
-        k, qa, qb, route = item.data
-        enc = self.enc
-        enc._pos = k
-        enc._edges += 1
-        route.serve({enc.a: qa, enc.b: qb})
-        self.last = item
-
-    # ---- counted runs (served._count): the crossings up to a tick, without locating each ----
-    def count_bound(self, R: int, base_hz: int) -> int:
-        """At most how many crossings a counted run whose handlers return by tick ``R`` could hold
-        (0 if this stream cannot be counted): from the motor's speed bound, without evaluating θ.
-        It cannot be counted when its motor is not in a chunk of PWM periods, when crossings may
-        come closer together than a handler takes (with a factor 2 margin), or when the outputs do
-        not show the position's quadrature state."""
-        self.t_max = None
-        sp = None if self.span is None else self.span()
-        if sp is None:
-            return 0
-        end, wlo, whi = sp
-        ra, rb = self.ra, self.rb
-        clock = ra.clock
-        enc = self.enc
-        if (rb.clock is not clock or enc._glitch_ev is not None
-                or (self.la, self.lb) != _QUAD[(self.pos - enc._slip) & 3]):
-            return 0
-        ticks = max(ra.ticks, rb.ticks)
-        # crossings come ≥ floor(step/whi·hz) ticks apart; a handler returns < P + ticks after its edge
-        if not 0.0 < whi * 2.0 * (clock.period + ticks + 1) < enc.step * base_hz:
-            return 0
-        t_max = min(served.last_tick_returning_by(clock, ticks, R), end - 1)
-        self.t_max, self.K, self.wlo = t_max, self.pos, wlo
-        t0 = self.pending[0]
-        return 0 if t_max < t0 else 1 + int(whi * (t_max - t0) / (enc.step * base_hz))
-
-    def count_window(self, R: int, base_hz: int):
-        """After :meth:`count_bound`: how many crossings come by the window's last tick (t_max),
-        or None if they cannot be counted (as there, or θ moves too slowly for its float values to
-        grow tick by tick)."""
-        t_max = self.t_max
-        if t_max is None:
-            return None
-        t0, d = self.pending
-        if t_max < t0:
-            return 0
-        th = self.state_at(t_max)[2]
-        if self.wlo <= 1e-12 * (abs(th) + 1.0) * base_hz:
-            return None         # θ may gain less per tick than its float rounding
-        K = self.enc._k_of(th)
-        if (K - self.pos) * d < 1:
-            return None         # the crossing due at t0 is not seen at t_max: do not guess
-        self.K = K
-        return abs(K - self.pos)
-
-    def locate_next(self):
-        """The first crossing after the window (tick, direction, guards) or None, as ``nxt``."""
-        nt, firing = self.locate(self.enc._guards_at(self.K), self.t_max)
-        self.nxt = None if nt is None else (nt, firing[0][6], firing)
-        return self.nxt
-
-    def _route_into(self, k: int, d: int):
-        qa = _QUAD[(k - self.enc._slip) & 3][0]
-        return self.ra if qa != _QUAD[(k - d - self.enc._slip) & 3][0] else self.rb
-
-    def cut(self, c):
-        """The crossings before tick ``c`` (all of the window's if ``c`` is None or after it):
-        (how many, the last one's tick, its handler's return), (0, None, None) if none, or None if
-        the last one is not where the count says (a float surprise: the run is not counted)."""
-        t0, d = self.pending
-        if c is None or c > self.t_max:
-            K = self.K
-        elif c - 1 < t0:
-            K = self.pos
-        else:
-            K = self.enc._k_of(self.state_at(c - 1)[2])
-        m = (K - self.pos) * d
-        if m <= 0:
-            return (0, None, None) if m == 0 else None
-        g = self.enc._guards_at(K - d)[0 if d > 0 else 1]      # the crossing into K
-        L, _ = self.locate((g,), t0 - 1)
-        if L is None or L > self.t_max or (c is not None and L >= c):
-            return None
-        return m, L, self._route_into(K, d).returns(L)
-
-    def commit_count(self, m: int, L: int, ret: int) -> None:
-        """Serve the first ``m`` crossings of the window (the last one at tick ``L``)."""
-        enc = self.enc
-        d = self.pending[1]
-        k = self.pos
-        ra, rb = self.ra, self.rb
-        step_a, step_b = ra.stepper(enc.a, enc.b), rb.stepper(enc.a, enc.b)
-        la, na = self.la, 0
-        for _ in range(m):
-            k += d
-            qa, qb = _QUAD[(k - enc._slip) & 3]
-            if qa != la:            # A changed: INT on A's pin
-                step_a(qa, qb)
-                na += 1
-                la = qa
-            else:
-                step_b(qa, qb)
-        ra.charge(na)
-        rb.charge(m - na)
-        self.la, self.lb = _QUAD[(k - enc._slip) & 3]
-        enc._pos = self.pos = k
-        enc._edges += m
-        enc.counted_edges += m
-        if k != self.K:     # cut short: the next crossing is the first after the last one served
-            nt, firing = self.locate(enc._guards_at(k), L)
-            self.nxt = None if nt is None else (nt, firing[0][6], firing)
-        self.last = served.Item(self, L, ret, self.nxt, None)
-
-    def finish(self):
-        """After the run: the outputs show the last served edge, and ``on_finish(nxt)`` gets the
-        next crossing located from the last one served ((tick, direction, firing guards) or None)."""
-        if self.last is not None:
-            enc = self.enc
-            qa, qb = _QUAD[(enc._pos - enc._slip) & 3]
-            enc.a.settle(enc.name, qa)
-            enc.b.settle(enc.name, qb)
-            self.on_finish(self.last.nxt)
 
 
 class ShaftCode:
@@ -492,7 +335,7 @@ class QuadratureEncoder:
         if ra is None or rb is None:
             return None
         self._serve_hint = (ra.cpu, ra.vector, rb.vector)
-        return _Crossings(self, direction, tick, locate, state_at, ra, rb, on_finish, span)
+        return Crossings(self, direction, tick, locate, state_at, ra, rb, on_finish, span)
 
     # ---- fault injection ---------------------------------------------------------------------------
     def glitch(self, channel: str = "A", width: int = 1) -> None:

@@ -100,6 +100,6 @@ class SysTick(Peripheral):
             self._ev = None
             self._t0, self._val0 = self.kernel.now, 0  # rebase at each wrap: exact and cheap
             self._schedule(self.kernel.now + (self._load + 1) * self._clk.period)
-        if ctrl & 2:  # TICKINT. Pended last, after the next wrap is scheduled (a CPU-priority entry
+        if ctrl & 2:  # TICKINT. Pended after the next wrap is scheduled (a CPU-priority entry
             # cannot tie with that hardware-priority wrap), so the CPU may take the entry in place
-            self.nvic.set_pending(SYSTICK, last=True)
+            self.nvic.set_pending(SYSTICK)
