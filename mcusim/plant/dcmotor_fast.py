@@ -149,13 +149,26 @@ class PeriodicDrive:
     def _first_passive(self, guards, after: int):
         """(tick offset, the guards firing there) of the first of ``guards`` (passive, θ-only) to
         fire after offset ``after``, or (None, [])."""
-        search, _ = self._passive_search(after)
+        search, end = self._passive_search(after)
         best, firing = None, []
         s = self._s
+        x1 = None
         for g in guards:
-            if g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
+            if after == 0 and pwl.fired(g, pwl.hval(g, self._x0)):
+                # already fired where the trajectory starts (a state jump put θ past it): the
+                # edge-by-edge screening takes a guard as not fired at the segment start and finds
+                # it at the first tick after that, whichever way θ moves
+                if end < 1:
+                    continue
+                if x1 is None:
+                    x1 = self._at(self._traj, 1)
+                if not pwl.fired(g, pwl.hval(g, x1)):
+                    continue
+                n = 1
+            elif g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
                 continue
-            n = search(g)
+            else:
+                n = search(g)
             if n is None or (best is not None and n > best):
                 continue
             if best is None or n < best:
