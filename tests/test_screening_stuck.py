@@ -22,7 +22,7 @@ def held_plans():
     full = screening.PeriodPlan.first_flag
 
     def spy(self, x0, n, extra):
-        if self._stuck.all():
+        if all(self._stuck_t):
             calls.append((self, tuple(x0), n, extra))
         return full(self, x0, n, extra)
     sim = mcusim.load("nucleo-f746", overrides={"/motor1/set_pos": 1.0, "/motor2/set_pos": -0.5})
@@ -57,13 +57,8 @@ def test_the_ends_of_a_held_chunk_decide_as_every_period_does(held_plans):
     for plan, x0, n, extra in held_plans:
         fast, full = _both(plan, x0, n, extra)
         _same(fast, full)
-        shortcut += plan._stuck_ends(plan.table.augmented_states(x0, n), n, *_arrays(plan, extra)) is not None
+        shortcut += plan._stuck_ends(plan.table.augmented_states(x0, n), n, extra) is not None
     assert shortcut > 0.9 * len(held_plans)     # holding, nearly every chunk is settled at its ends
-
-
-def _arrays(plan, extra):
-    G, _, _, aGx, aG0, _, _ = plan._screens[extra]
-    return G, aGx, aG0
 
 
 @settings(max_examples=300, deadline=None)

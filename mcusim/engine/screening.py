@@ -69,9 +69,10 @@ class PeriodPlan:
         for pc in pieces:
             Q.append(periodmap.then(Q[-1], pc[1]))
         self.Q = Q
-        self.Ql = [q.tolist() for q in Q]      # the same, as lists (one state at a time)
+        self.Ql = Ql = [q.tolist() for q in Q]      # the same, as lists (one state at a time)
         self.T = Q[-1]
-        self.table = PowerTable(self.T, n)
+        self._n = n
+        self._table = None
         self.starts = []   # tick offset of each piece from the period start
         off = 0
         for pc in pieces:
@@ -79,7 +80,7 @@ class PeriodPlan:
             off += pc[0]
         # x̄ = W·|x| + w per piece, W = (I − τ|A|)⁻¹ (none when τ|A| is not a contraction: no
         # bound, never chunk). A stuck piece needs none: its |i| is largest at an end and ω is held
-        # (first_flag). Built as floats, stacked once.
+        # (first_flag). Built as floats here, stacked when a screening of every period needs them.
         Wt, w, taus, At, us = [], [], [], [], []
         self._bounded = True
         for ticks, _, absA, absu, _, _, mode, _ in pieces:
@@ -101,18 +102,35 @@ class PeriodPlan:
             taus.append(((tau,),))
             At.append(((a00, a10), (a01, a11)))
             us.append((absu,))
-        self._stuck = np.array([pc[6][1] == 0 for pc in pieces])[:, None, None]
+        self._bound_rows = (Wt, w, taus, At, us)
+        self._arrays = None                  # the same, stacked (_stacked)
+        self._stuck_t = tuple(pc[6][1] == 0 for pc in pieces)
         # every piece stuck: over a period only the current moves, i ← a·i + b (``_held_states``)
-        t00, t03 = float(self.T[0, 0]), float(self.T[0, 3])
-        self._held = ((math.log1p(t00), t03 / t00) if self._stuck.all() and -1.0 < t00 < 0.0
-                      and not self.T[0, 1:3].any() and not self.T[1].any() else None)
-        if self._bounded:   # per piece, stacked (first_flag screens all pieces of all periods at once)
-            self._Wt, self._w, self._tau = np.array(Wt), np.array(w), np.array(taus)
-            self._At, self._u = np.array(At), np.array(us)
-        npc = len(pieces)
-        # Q[1..npc-1] side by side: one product gives every inner piece start
-        self._QTcat = np.concatenate([q.T for q in Q[1:npc]], axis=1) if npc > 1 else None
+        T = Ql[-1]
+        t00, t03 = T[0][0], T[0][3]
+        self._held = ((math.log1p(t00), t03 / t00) if all(self._stuck_t) and -1.0 < t00 < 0.0
+                      and not (T[0][1] or T[0][2]) and not any(T[1]) else None)
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
+
+    @property
+    def table(self) -> PowerTable:
+        """The powers of the period map (built when first asked for: a held plan needs none)."""
+        if self._table is None:
+            self._table = PowerTable(self.T, self._n)
+        return self._table
+
+    def _stacked(self):
+        """(Wt, w, τ, |A|ᵀ, |u|, stuck, Q[1..npc-1]ᵀ side by side) as arrays, for the screening of
+        every period: built once per plan, when first needed."""
+        a = self._arrays
+        if a is None:
+            Wt, w, taus, At, us = self._bound_rows
+            npc = len(self.pieces)
+            # Q[1..npc-1] side by side: one product gives every inner piece start
+            qcat = np.concatenate([q.T for q in self.Q[1:npc]], axis=1) if npc > 1 else None
+            a = self._arrays = (np.array(Wt), np.array(w), np.array(taus), np.array(At), np.array(us),
+                                np.array(self._stuck_t)[:, None, None], qcat)
+        return a
 
     def first_flag(self, x0, n: int, extra_guards):
         """(k, X, ib, (wlo, whi)): the first period k (0..n) in which a guard may fire (n if none
@@ -131,7 +149,7 @@ class PeriodPlan:
             # the same guards in the same modes make the same arrays, whatever the pieces' lengths:
             # a PID moving the duty builds a new plan at every step, with the guards of the last
             shared = self.guard_cache
-            key = (tuple(pc[4] for pc in self.pieces), extra_guards, tuple(self._stuck.ravel().tolist()))
+            key = (tuple(pc[4] for pc in self.pieces), extra_guards, self._stuck_t)
             arrays = shared.get(key)
             if arrays is None:
                 if len(shared) >= 64:
@@ -140,26 +158,27 @@ class PeriodPlan:
             self._screens[extra_guards] = arrays
         G, aGd, aGth, aGx, aG0, mono, ends = arrays
         if STUCK_ENDS and ends and n > 2:
-            clean = self._stuck_ends(X, n, G, aGx, aG0)
+            clean = self._stuck_ends(X, n, extra_guards)
             if clean is not None:
                 return clean
+        Wt, w, tau, At, u, stuck, qcat = self._stacked()
         npc = len(self.pieces)
         # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
         Xn = X[:n]
         St = np.empty((npc + 1, n, 4))
         St[0] = Xn
         if npc > 1:
-            St[1:npc] = (Xn @ self._QTcat).reshape(n, npc - 1, 4).swapaxes(0, 1) + Xn
+            St[1:npc] = (Xn @ qcat).reshape(n, npc - 1, 4).swapaxes(0, 1) + Xn
         St[npc] = X[1:]
         S, E = St[:-1], St[1:]                  # (pieces, periods, 4) at each piece's start and end
-        xb = np.abs(S[:, :, :2]) @ self._Wt + self._w   # bound of |i|, |ω| inside the piece
-        if self._stuck.any():
+        xb = np.abs(S[:, :, :2]) @ Wt + w               # bound of |i|, |ω| inside the piece
+        if any(self._stuck_t):
             # a stuck piece: i is one exponential (monotone), ω is held: |i|, |ω| peak at an end
-            xb = np.where(self._stuck, np.maximum(np.abs(S[:, :, :2]), np.abs(E[:, :, :2])), xb)
-        D = xb @ self._At + self._u                      # bound of |di/dt|, |dω/dt|
+            xb = np.where(stuck, np.maximum(np.abs(S[:, :, :2]), np.abs(E[:, :, :2])), xb)
+        D = xb @ At + u                                  # bound of |di/dt|, |dω/dt|
         hs = S @ G                                       # (pieces, periods, guards)
         he = E @ G
-        lip = self._tau * (D @ aGd + xb[:, :, 1:2] * aGth)
+        lip = tau * (D @ aGd + xb[:, :, 1:2] * aGth)
         if mono is not None:
             lip *= mono
         scale = (np.abs(S[:, :, :3]) @ aGx + aG0) * MARGIN
@@ -169,9 +188,9 @@ class PeriodPlan:
             return 0, X[:1], 0.0, (0.0, 0.0)
         # |ω| over the k periods: at most the inside bound, at least |ω| at a piece start less the
         # most dω/dt can move it over the piece (a counted run of encoder crossings needs both)
-        w = xb[:, :k, 1]
-        wlo = float((np.abs(S[:, :k, 1]) - self._tau[:, :, 0] * D[:, :k, 1]).min())
-        return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(w.max()))
+        wk = xb[:, :k, 1]
+        wlo = float((np.abs(S[:, :k, 1]) - tau[:, :, 0] * D[:, :k, 1]).min())
+        return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(wk.max()))
 
     def _held_states(self, x0, n: int):
         """Rows (i, ω, θ, 1) after k = 0..n periods of a plan whose pieces are all stuck, from a
@@ -187,7 +206,7 @@ class PeriodPlan:
         X[:, 3] = 1.0
         return X
 
-    def _stuck_ends(self, X, n: int, G, aGx, aG0):
+    def _stuck_ends(self, X, n: int, extra_guards):
         """A chunk whose pieces are all stuck, each guard either without a θ term or on θ alone:
         screened at its first and last period only, or None if a guard may fire there.
 
@@ -204,19 +223,29 @@ class PeriodPlan:
         monotone sequence peaks at an end; the computed currents are monotone to rounding, and the
         bound gets a margin). Holding a position (static friction, the PID moving the duty every
         step) is all such chunks."""
+        r = X[[0, 1, n - 1, n]].tolist()
+        Ql = self.Ql
         npc = len(self.pieces)
-        ends = X[[0, n - 1]]
-        St = np.empty((npc + 1, 2, 4))
-        St[0] = ends
-        if npc > 1:
-            St[1:npc] = (ends @ self._QTcat).reshape(2, npc - 1, 4).swapaxes(0, 1) + ends
-        St[npc] = X[[1, n]]
-        S, E = St[:-1], St[1:]
-        big = np.maximum(np.abs(S[:, :, :3]), np.abs(E[:, :, :3]))      # (pieces, 2, 3)
-        scale = (big.max(axis=1, keepdims=True) @ aGx + aG0) * MARGIN
-        if not ((S @ G > scale).all() and (E @ G > scale).all()):
-            return None
-        return n, X[:n + 1], float(big[:, :, 0].max()), (0.0, float(big[:, :, 1].max()))
+        # per period (the first, the last): the states at the piece boundaries, from its start row
+        # as x + Q[p]·(x, 1) (what ``ChunkTraj`` reads there), and the next period's start
+        bounds = []
+        for a, b in ((r[0], r[1]), (r[2], r[3])):
+            x = (a[0], a[1], a[2])
+            bounds.append([x] + [periodmap.apply_rows(Ql[p], x) for p in range(1, npc)] + [(b[0], b[1], b[2])])
+        (P0, P1), ib, wb = bounds, 0.0, 0.0
+        for p, pc in enumerate(self.pieces):
+            xs = (P0[p], P0[p + 1], P1[p], P1[p + 1])
+            bi = max(abs(x[0]) for x in xs)
+            bw = max(abs(x[1]) for x in xs)
+            bt = max(abs(x[2]) for x in xs)
+            ib, wb = max(ib, bi), max(wb, bw)
+            for g in pc[4] + extra_guards:
+                ci, cw, ct, c0 = g[0], g[1], g[2], g[3]
+                scale = (bi * abs(ci) + bw * abs(cw) + bt * abs(ct) + abs(c0)) * MARGIN
+                for x in xs:
+                    if not ci * x[0] + cw * x[1] + ct * x[2] + c0 > scale:
+                        return None
+        return n, X[:n + 1], ib, (0.0, wb)
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
@@ -233,11 +262,12 @@ class PeriodPlan:
         # Lipschitz term is dropped (mono 0). A shaft held at the breakaway threshold by a position
         # loop sits 1-3 % of the threshold below it, well inside the bound's slack of one piece.
         mono = None
-        if self._stuck.any():
-            mono = np.where(self._stuck[:, :, 0] & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
+        stuck = np.array(self._stuck_t)[:, None]
+        if stuck.any():
+            mono = np.where(stuck & (G[:, :, 2] == 0.0), 0.0, 1.0)[:, None, :]
         # every piece stuck and every guard either without a θ term or on θ alone: the chunk's two
         # end periods decide it (_stuck_ends)
-        ends = bool(self._stuck.all() and not (mono * aGt[:, :2].any(axis=1, keepdims=True)).any())
+        ends = bool(stuck.all() and not (mono * aGt[:, :2].any(axis=1, keepdims=True)).any())
         return Gt, aGt[:, :2], aGt[:, 2:3], aGt[:, :3], aGt[:, 3:4], mono, ends
 
     def states_at_piece_starts(self, x0, k: int):
