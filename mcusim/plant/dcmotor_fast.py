@@ -149,7 +149,7 @@ class PeriodicDrive:
     def _first_passive(self, guards, after: int):
         """(tick offset, the guards firing there) of the first of ``guards`` (passive, θ-only) to
         fire after offset ``after``, or (None, [])."""
-        search, end = self._passive_search(after)
+        search = None
         best, firing = None, []
         s = self._s
         x1 = None
@@ -158,6 +158,8 @@ class PeriodicDrive:
                 # already fired where the trajectory starts (a state jump put θ past it): the
                 # edge-by-edge screening takes a guard as not fired at the segment start and finds
                 # it at the first tick after that, whichever way θ moves
+                if search is None:
+                    search, end = self._passive_search(after)
                 if end < 1:
                     continue
                 if x1 is None:
@@ -168,6 +170,8 @@ class PeriodicDrive:
             elif g[2] * s > 0.0 or s == 0:    # θ moves away from it (or stands still)
                 continue
             else:
+                if search is None:
+                    search, end = self._passive_search(after)
                 n = search(g)
             if n is None or (best is not None and n > best):
                 continue

@@ -189,15 +189,15 @@ class QuadratureEncoder:
         """Start a lazy stretch now if the outputs' only reader is one decoder that takes it."""
         if self._drop or self._glitch_ev is not None:
             return
+        w = self.motor.speed            # a shaft at rest (holding a position) first: no stretch
+        if w == 0.0 or self.k_at(self.kernel.now) != self._pos:
+            return
         da, db = ShaftCode(self, 0), ShaftCode(self, 1)
-        sa = self.a.wave_sinks(da)      # first: an interrupt pin (an AVR's INTn) says no at once
+        sa = self.a.wave_sinks(da)      # an interrupt pin (an AVR's INTn) says no at once
         if not sa or len(sa) != 1:
             return
         sb = self.b.wave_sinks(db)
         if not sb or len(sb) != 1 or sa[0][0] is not sb[0][0]:
-            return
-        w = self.motor.speed
-        if w == 0.0 or self.k_at(self.kernel.now) != self._pos:
             return
         sink = sa[0][0]
         d = 1 if w > 0 else -1
