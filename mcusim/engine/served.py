@@ -41,9 +41,11 @@ crossings more than twice a handler's reach apart (so the last two conditions ab
 every crossing), :func:`_count` does not locate them: the crossings whose handlers return before
 the barrier are those up to one tick (:func:`last_tick_returning_by`), and their number is the
 position the encoder's guards reach at that tick, from the shaft angle there, less the position
-now. Only the last crossing served and the first one left out are located, for the cut: the first
-crossing left out, of any stream, or earlier where another stream's last handler would still run
-then. The handlers are applied one after the other, as a planned run applies them.
+now. Only the first crossing left out of each stream is located, for the cut: the first crossing
+left out, of any stream, or earlier where another stream's last handler would still run then. The
+last crossing served is located only where its handler could still run at the cut (the latest
+return of a crossing at the window's last tick is not before it). The handlers are applied one
+after the other, as a planned run applies them.
 
 The levels a handler reads are the ones after its edge: the next edge comes after its return.
 Flags set and cleared, the I flag cleared at entry and set by RETI, the pending-line bits: none of
@@ -161,8 +163,9 @@ def serve_run(kernel, owner) -> bool:
     streams of other encoders whose queued crossings come before the *barrier* (the first queued
     event that is not such a crossing). Their events are *absorbed*: they are cancelled if their
     stream serves. Returns False if not even the first crossing is served (nothing changed); else
-    ``kernel.now`` is the latest return among the served handlers, and each stream has committed
-    its crossings and scheduled what comes next (``finish``).
+    each stream has committed its crossings and scheduled what comes next (``finish``), all after
+    the last handler's return. ``kernel.now`` stays at the run's first crossing: no queued event
+    comes before the barrier, so nothing can look in between.
 
     The run is counted (:func:`_count`) where it can be, else planned crossing by crossing
     (:func:`_plan`)."""
@@ -219,7 +222,7 @@ def _count(kernel, streams, barrier) -> bool:
         cuts = [s.cut(c) for s in streams]
         if None in cuts:
             return False
-        late = [x[1] for x in cuts if x[0] and c is not None and x[2] >= c]
+        late = [x[1] for x in cuts if x[0] and c is not None and x[2] is not None and x[2] >= c]
         if not late:
             break
         c = min(late)
@@ -227,12 +230,9 @@ def _count(kernel, streams, barrier) -> bool:
         return False
     if not cuts[0][0]:
         return False
-    top = kernel.now
     for s, (m, L, ret) in zip(streams, cuts):
         if m:
             s.commit_count(m, L, ret)
-            top = max(top, ret)
-    kernel.now = top
     for s in streams:
         s.finish()
     return True
@@ -269,17 +269,16 @@ def _plan(kernel, streams, barrier) -> bool:
         plan.append(item)
         s.pending = item.nxt
     # the longest prefix whose handlers all return before the first crossing left out
-    n, top, best = 0, -1, 0
+    top, best = -1, 0
     for j, item in enumerate(plan):
         top = max(top, item.ret)
         nxt_t = plan[j + 1].t if j + 1 < len(plan) else t_stop
         if nxt_t is None or top < nxt_t:
-            best, n = j + 1, top
+            best = j + 1
     if best == 0:
         return False
     for item in plan[:best]:
         item.stream.commit(item)
-    kernel.now = max(kernel.now, n)
     for s in streams:
         s.finish()
     return True

@@ -126,14 +126,24 @@ class Crossings:
         m = (K - self.pos) * d
         if m <= 0:
             return (0, None, None) if m == 0 else None
+        if K == self.K and (c is None or self._returns_by(self.t_max) < c):
+            # the whole window, and every handler in it returns before c wherever its last
+            # crossing lies: the run needs neither that crossing's tick nor its return
+            return m, None, None
         g = self.enc._guards_at(K - d)[0 if d > 0 else 1]      # the crossing into K
         L, _ = self.locate((g,), t0 - 1)
         if L is None or L > self.t_max or (c is not None and L >= c):
             return None
         return m, L, self._route_into(K, d).returns(L)
 
-    def commit_count(self, m: int, L: int, ret: int) -> None:
-        """Serve the first ``m`` crossings of the window (the last one at tick ``L``)."""
+    def _returns_by(self, t: int) -> int:
+        """The latest return of a handler of a crossing at or before tick ``t``."""
+        ra, rb = self.ra, self.rb
+        return max(ra.returns(t), rb.returns(t))
+
+    def commit_count(self, m: int, L, ret) -> None:
+        """Serve the first ``m`` crossings of the window (the last one at tick ``L``, its handler
+        returning at ``ret``; both None when the whole window is served, see :meth:`cut`)."""
         enc = self.enc
         d = self.pending[1]
         k = self.pos
