@@ -2,12 +2,14 @@
 review (tests/test_engine_fuzz_*.py generalise them). Each asserts that the two engines agree
 (first difference reported) for the situation named."""
 
+import pytest
 from diff_net import compare as compare_net
 from diff_plant import compare as compare_plant
 from diff_tim import compare as compare_tim
 
 from mcusim.engine.waveform import Waveform
 from mcusim.kernel import Kernel
+from mcusim.plant.bts7960 import Bts7960Bridge
 from mcusim.plant.dcmotor import DcMotor
 from mcusim.plant.l6206 import L6206Bridge
 from mcusim.signals import Net
@@ -113,14 +115,29 @@ def _l6206_rig(engine):
     return k, nets, m
 
 
-def test_a_waveform_republished_with_the_same_shape_leaves_the_motor_chunk_as_it_is():
+def _bts7960_rig(engine):
+    """The same with a BTS7960 (IBT-2): RPWM as ``in1``, LPWM low, both enables high."""
+    k = Kernel(TimeBase([216_000_000]), engine)
+    nets = {n: Net(n) for n in ("in1", "lpwm", "r_en", "l_en")}
+    for n in nets.values():
+        n.set("drv", 0)
+    m = DcMotor(k, "m")
+    Bts7960Bridge(k, m, nets["in1"], nets["lpwm"], nets["r_en"], nets["l_en"], name="ibt2")
+    nets["r_en"].set("drv", 1)
+    nets["l_en"].set("drv", 1)
+    return k, nets, m
+
+
+@pytest.mark.parametrize("rig", [_l6206_rig, _bts7960_rig])
+def test_a_waveform_republished_with_the_same_shape_leaves_the_motor_chunk_as_it_is(rig):
     """A timer whose preload waits for the next update event republishes its PWM waveform with the
-    tick where it ends; the bridge's drive is the same shape, so the motor keeps its chunk (no new
-    segment) and its state is the one the reference engine gives."""
+    tick where it ends (TimerOne's duty written into OCR1A's buffer, HAL's CCR with preload); the
+    bridge's drive is the same shape, so the motor keeps its chunk (no new segment) and its state
+    is the one the reference engine gives."""
     MS = 216000
     states = {}
     for engine in ("reference", "fast"):
-        k, nets, m = _l6206_rig(engine)
+        k, nets, m = rig(engine)
         if engine == "fast":
             nets["in1"].set_wave("drv", Waveform(k, 0, 4320, 2000))
             k.run_until(5 * MS + 17)

@@ -183,6 +183,7 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
         self._cacc = None            # fast engine: supply account of a chunk of whole periods
         self._periodic = False       # fast engine: the motor follows drive_schedule()
         self._sched = None           # fast engine: (anchor, period, ((offset, legs), ...))
+        self._shape = None           # fast engine: the input shape that schedule was made from
         self._edge_ev = None         # fast engine: edges of waveforms the schedule does not cover
         self._record()
         for net in (rpwm, lpwm, r_en, l_en):
@@ -466,6 +467,8 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
             if h.overtemp and h.en is net and not net.level:
                 self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
         if self.kernel.fast and (self._periodic or self._waves()):
+            if self._schedule_stands():
+                return
             if self._edge_ev is not None:
                 self._edge_ev.cancel()
                 self._edge_ev = None

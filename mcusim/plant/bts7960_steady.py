@@ -29,7 +29,7 @@ bridge is in current limitation or thermal shutdown, or when the inputs' periods
 from __future__ import annotations
 
 from ..errors import McusimError
-from .hbridge import leg_pieces
+from .hbridge import input_shape, leg_pieces
 
 
 class SteadyDrive:
@@ -66,8 +66,7 @@ class SteadyDrive:
         halves = self._half.values()
         if not waves or any(h.fault or h.overtemp for h in halves):
             return self._not_periodic(waves)
-        vals = tuple(None if n is None else (n.wave if n.wave is not None else (1 if n.level else 0))
-                     for n in self._nets())
+        vals = self._input_values()
         found = leg_pieces(waves, lambda t: self._legs_from(vals, t))
         if found is None:
             return self._not_periodic(waves)
@@ -78,10 +77,22 @@ class SteadyDrive:
         self._periodic = True
         self._legs_seen = None
         self._record(("w", vals))
+        self._shape = input_shape(self._nets())
         self._sched = (anchor % P, P, tuple(pieces))
         mp = self.motor.params
         self._cacc = (now, self._sched, mp.R, mp.L, mp.K)
         return (anchor, P, tuple((o, self.drive_for(lg), self._piece_guards(lg)) for o, lg in pieces))
+
+    def _input_values(self):
+        """Per input net (RPWM, LPWM, R_EN, L_EN): its waveform, else its level (None: no net)."""
+        return tuple(None if n is None else (n.wave if n.wave is not None else (1 if n.level else 0))
+                     for n in self._nets())
+
+    def _schedule_stands(self) -> bool:
+        """The inputs keep the shape the running schedule was made from (``input_shape``: a
+        timer republished a waveform that now ends at its next update, where a new duty waits):
+        the schedule, and the motor's chunk, stand until the timer publishes again."""
+        return self._periodic and self._shape == input_shape(self._nets())
 
     def _not_periodic(self, waves):
         self._periodic = False

@@ -38,6 +38,16 @@ class MosfetBridge:
         return d
 
 
+def input_shape(nets):
+    """What a bridge's drive schedule depends on (fast engine): per input net its waveform's shape
+    (phase within the period, period, width; not where its owner already knows it ends: the owner
+    publishes again there) or its level (None for an input that is not wired). A waveform
+    republished with the same shape (a compare value waiting in a preload register ends it at the
+    next update) leaves the schedule the motor follows as it is."""
+    return tuple(None if n is None else ((w.rise % w.period, w.period, w.width) if (w := n.wave) is not None
+                                         else n.level) for n in nets)
+
+
 def leg_pieces(waves, legs_at):
     """Fast engine: the leg states of one period of input waveforms that share a period.
 

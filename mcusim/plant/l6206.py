@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from mcusim.plant.hbridge import MosfetBridge, leg_pieces
+from mcusim.plant.hbridge import MosfetBridge, input_shape, leg_pieces
 
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
@@ -186,10 +186,7 @@ class L6206Bridge(MosfetBridge):
             self._next_edge()
 
     def _input_shape(self):
-        """What the motor's drive schedule depends on: each input's waveform shape (phase within
-        the period, period, width; not where its owner already knows it ends) or level."""
-        return tuple((w.rise % w.period, w.period, w.width) if (w := n.wave) is not None else n.level
-                     for n in (self.in1, self.in2, self.en))
+        return input_shape((self.in1, self.in2, self.en))
 
     def _on_pin(self, net):
         if self._periodic and not self.ocd_active and self._input_shape() == self._shape:
