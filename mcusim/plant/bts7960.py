@@ -184,6 +184,7 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
         self._periodic = False       # fast engine: the motor follows drive_schedule()
         self._sched = None           # fast engine: (anchor, period, ((offset, legs), ...))
         self._shape = None           # fast engine: the input shape that schedule was made from
+        self._pieces_cache = {}      # fast engine: input shape -> (anchor mod period, period, pieces) or None
         self._edge_ev = None         # fast engine: edges of waveforms the schedule does not cover
         self._record()
         for net in (rpwm, lpwm, r_en, l_en):

@@ -67,7 +67,20 @@ class SteadyDrive:
         if not waves or any(h.fault or h.overtemp for h in halves):
             return self._not_periodic(waves)
         vals = self._input_values()
-        found = leg_pieces(waves, lambda t: self._legs_from(vals, t))
+        shape = input_shape(self._nets())
+        # the pieces depend on the inputs' shapes only: a rebuild for another reason (a supply
+        # or load change, a chunk's end) finds them again
+        cache = self._pieces_cache
+        if shape in cache:
+            found = cache[shape]
+        else:
+            found = leg_pieces(waves, lambda t: self._legs_from(vals, t))
+            if found is not None:
+                anchor, P, pieces = found
+                found = (anchor % P, P, tuple(pieces))
+            if len(cache) >= 32:
+                cache.clear()
+            cache[shape] = found
         if found is None:
             return self._not_periodic(waves)
         anchor, P, pieces = found
@@ -77,8 +90,8 @@ class SteadyDrive:
         self._periodic = True
         self._legs_seen = None
         self._record(("w", vals))
-        self._shape = input_shape(self._nets())
-        self._sched = (anchor % P, P, tuple(pieces))
+        self._shape = shape
+        self._sched = found
         mp = self.motor.params
         self._cacc = (now, self._sched, mp.R, mp.L, mp.K)
         return (anchor, P, tuple((o, self.drive_for(lg), self._piece_guards(lg)) for o, lg in pieces))
