@@ -35,11 +35,14 @@ import math
 import numpy as np
 
 from ..plant import pwl
-from . import periodmap
+from . import modal, periodmap
 from .periodmap import PowerTable
 
 #: screen chunks of stuck pieces at their ends only (PeriodPlan._stuck_ends); off: every period
 STUCK_ENDS = True
+
+#: clear moving chunks by the modal test first (mcusim.engine.modal); off: every period
+MODAL = True
 
 #: relative safety margin of a screened guard value (far above the maps' float rounding, ~1e-15 in
 #: delta form, and the screening's own numpy rounding)
@@ -111,6 +114,8 @@ class PeriodPlan:
         self._held = ((math.log1p(t00), t03 / t00) if all(self._stuck_t) and -1.0 < t00 < 0.0
                       and not (T[0][1] or T[0][2]) and not any(T[1]) else None)
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
+        self._modes = None   # the period map's modal form (modal.Modes), False where it has none
+        self._theta_guards = any(g[2] for pc in pieces for g in pc[4])
 
     @property
     def table(self) -> PowerTable:
@@ -161,6 +166,10 @@ class PeriodPlan:
             clean = self._stuck_ends(X, n, extra_guards)
             if clean is not None:
                 return clean
+        if MODAL and n > 2 and not any(self._stuck_t):
+            clean = self._modal(x0, X, n, extra_guards)
+            if clean is not None:
+                return clean
         Wt, w, tau, At, u, stuck, qcat = self._stacked()
         npc = len(self.pieces)
         # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
@@ -191,6 +200,24 @@ class PeriodPlan:
         wk = xb[:, :k, 1]
         wlo = float((np.abs(S[:, :k, 1]) - tau[:, :, 0] * D[:, :k, 1]).min())
         return k, X[:k + 1], float(xb[:, :k, 0].max()), (max(wlo, 0.0), float(wk.max()))
+
+    def _modal(self, x0, X, n: int, extra_guards):
+        """The modal test of a moving chunk (:mod:`mcusim.engine.modal`): (n, X, ib, (wlo, whi)) if
+        it clears every guard over all n periods, else None (the full screening decides)."""
+        modes = self._modes
+        if modes is None:
+            try:
+                modes = modal.Modes(self.Ql)
+            except (ValueError, ZeroDivisionError, OverflowError):
+                modes = False
+            self._modes = modes
+        if modes is False or any(g[2] for g in extra_guards) or self._theta_guards:
+            return None
+        pieces = self.pieces
+        got = modal.screen(self, modes, x0, n, lambda p: pieces[p][4] + extra_guards, MARGIN)
+        if got is None:
+            return None
+        return n, X[:n + 1], got[0], got[1]
 
     def _held_states(self, x0, n: int):
         """Rows (i, ω, θ, 1) after k = 0..n periods of a plan whose pieces are all stuck, from a
