@@ -26,6 +26,6 @@ def test_bench_fast_paths_runs_each_case_both_ways_and_restores_the_switches(mon
     mod.main()
     out = capsys.readouterr().out
     assert out.count(" with it, ") == len(mod.CASES)
-    assert served.COUNT_MIN == 4 and screening.STUCK_ENDS is True
+    assert served.COUNT_MIN == 4 and screening.STUCK_ENDS is True and screening.MODAL is True
     assert screening.PeriodPlan._held_states is held_states
     assert "_held_states_on" not in vars(screening.PeriodPlan)
