@@ -55,6 +55,7 @@ class Kernel:
         self.horizon = -1  # while running: the last tick an event may run at (-1: none, see would_be_next)
         self._in_event = False
         self._event_time = None
+        self._event_prio = None
         self._post = []    # what runs when the event being handled returns (end_of_event)
 
     def at(self, time: int, fn, *args, prio: int = PRIO_HW) -> Event:
@@ -85,6 +86,13 @@ class Kernel:
         if fn not in self._post:
             self._post.append(fn)
         return True
+
+    def early_in_tick(self, prio: int) -> bool:
+        """The event being handled comes before the events of priority ``prio`` at its tick (its
+        own priority is lower) and has not moved ``now`` on: what those events change at this tick
+        it must not see yet. A model that computes a state lazily (an encoder counted from the shaft
+        angle) asks this where the edge-by-edge model changes it in an event of priority ``prio``."""
+        return self._in_event and self.now == self._event_time and self._event_prio < prio
 
     def after(self, delay: int, fn, *args, prio: int = PRIO_HW) -> Event:
         return self.at(self.now + delay, fn, *args, prio=prio)
@@ -148,7 +156,7 @@ class Kernel:
         self.end = t_end
         try:
             while q and q[0][0] <= t_end:
-                time, _, _, ev = pop(q)
+                time, prio, _, ev = pop(q)
                 if ev.cancelled:
                     continue
                 if time < self.now:     # a model that jumped ``now`` past a queued event
@@ -157,6 +165,7 @@ class Kernel:
                 ev.cancelled = True  # fired events count as done, so cancel() on them is harmless
                 self._in_event = True
                 self._event_time = time
+                self._event_prio = prio
                 ev.fn(*ev.args)
                 post = self._post
                 while post:

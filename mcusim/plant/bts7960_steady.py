@@ -61,7 +61,8 @@ class SteadyDrive:
         fault overrides them, else None (the motor asks drive_state(); edges come one by one)."""
         self._close_account_now()
         now = self.kernel.now
-        self._check_now()
+        if self._switches_now():
+            self._check_now()
         waves = self._waves()
         halves = self._half.values()
         if not waves or any(h.fault or h.overtemp for h in halves):
@@ -95,6 +96,18 @@ class SteadyDrive:
         mp = self.motor.params
         self._cacc = (now, self._sched, mp.R, mp.L, mp.K)
         return (anchor, P, tuple((o, self.drive_for(lg), self._piece_guards(lg)) for o, lg in pieces))
+
+    def _switches_now(self) -> bool:
+        """The legs change at this tick (an input edge, an enable, a fault's end): the edge-by-edge
+        bridge checks the limits of the switches that are on from here at that edge. A rebuild at
+        any other tick (a supply, load or parameter change) does not: the screening of the new
+        segment finds a limit already passed, at the next tick, in both engines."""
+        now = self.kernel.now
+        for t_c, s in reversed(self._hist):
+            if t_c < now:
+                before = self._legs_from(s[1], now - 1) if s[0] == "w" else (s[0], s[1])
+                return before != self.legs
+        return True
 
     def _input_values(self):
         """Per input net (RPWM, LPWM, R_EN, L_EN): its waveform, else its level (None: no net)."""

@@ -52,7 +52,7 @@ class ShaftCode:
 
     def level_at(self, t: int) -> int:
         enc = self.enc
-        return enc.levels(enc.k_at(t))[self.ch]
+        return enc.levels(enc.k_now() if t == self.kernel.now else enc.k_at(t))[self.ch]
 
     settled_level = level_at
 
@@ -149,7 +149,7 @@ class QuadratureEncoder:
     @property
     def position(self) -> int:
         """k, the absolute quarter-step position (computed from the shaft angle while lazy)."""
-        return self._pos if self._lazy is None else self.k_at(self.kernel.now)
+        return self._pos if self._lazy is None else self.k_now()
 
     @position.setter
     def position(self, k: int) -> None:
@@ -159,7 +159,7 @@ class QuadratureEncoder:
     def edges(self) -> int:
         """Edges emitted so far (a lazy stretch emits one per threshold: θ is monotone there)."""
         lz = self._lazy
-        return self._edges if lz is None else lz.edges0 + abs(self.k_at(self.kernel.now) - lz.k0)
+        return self._edges if lz is None else lz.edges0 + abs(self.k_now() - lz.k0)
 
     @edges.setter
     def edges(self, n: int) -> None:
@@ -172,6 +172,15 @@ class QuadratureEncoder:
     def k_at(self, t: int) -> int:
         """The position at tick ``t`` (≤ now) from the shaft angle."""
         return self._k_of(self.motor.state_at(t)[2])
+
+    def k_now(self) -> int:
+        """The position the edge-by-edge encoder shows now (lazy counting). A crossing due at this
+        very tick is its plant event (PRIO_PLANT there): an event earlier in the tick (hardware, a
+        scenario's fault or input) still sees the position before it."""
+        now = self.kernel.now
+        if now and self.kernel.early_in_tick(PRIO_PLANT):
+            return self.k_at(now - 1)
+        return self.k_at(now)
 
     def _k_of(self, th: float) -> int:
         """The position at angle ``th`` by the guards' own comparisons (θ ≥ (k+1)·step crosses up,
@@ -246,12 +255,23 @@ class QuadratureEncoder:
         lz = self._lazy
         if lz is None:
             return
-        k = self.k_at(self.kernel.now)
+        now = self.kernel.now
+        k = self.k_now()
         self._edges = lz.edges0 + abs(k - lz.k0)
         self._pos = k
         self._lazy = None
         self._out()         # the decoder, told its descriptors end, rebuilds what is in flight
         self.motor.passive_changed()
+        if k != self.k_at(now):
+            # a crossing due at this tick that an earlier event of the tick ended the stretch
+            # before: it comes at the plant's priority, as the edge-by-edge encoder's event does
+            self.kernel.at(now, self._due_crossing, prio=PRIO_PLANT)
+
+    def _due_crossing(self) -> None:
+        k = self.k_at(self.kernel.now)
+        if k != self._pos and self._lazy is None:
+            self.on_guard(1 if k > self._pos else -1)
+            self.motor.passive_changed()
 
     @property
     def count(self) -> int:

@@ -203,7 +203,7 @@ class LazyEncoderStage:
                     else:
                         hi = mid
                 crossings.append((hi, k1))
-            kn = enc.k_at(now)
+            kn = enc.k_now()      # a crossing due now, unless an earlier event of the tick asks
             if kn != k1:
                 if abs(kn - k1) != 1:
                     raise McusimError(f"{self.name}: lazy encoder: two crossings in one tick")
