@@ -81,33 +81,14 @@ class PeriodPlan:
         for pc in pieces:
             self.starts.append(off)
             off += pc[0]
-        # x̄ = W·|x| + w per piece, W = (I − τ|A|)⁻¹ (none when τ|A| is not a contraction: no
-        # bound, never chunk). A stuck piece needs none: its |i| is largest at an end and ω is held
-        # (first_flag). Built as floats here, stacked when a screening of every period needs them.
-        Wt, w, taus, At, us = [], [], [], [], []
-        self._bounded = True
-        for ticks, _, absA, absu, _, _, mode, _ in pieces:
-            tau = ticks * inv_hz
-            a00, a01, a10, a11 = absA
-            m00, m01, m10, m11 = 1.0 - tau * a00, -tau * a01, -tau * a10, 1.0 - tau * a11
-            det = m00 * m11 - m01 * m10
-            if det <= 0 or tau * (a00 + a11) >= 1.0:
-                if mode[1] != 0:
-                    self._bounded = False
-                    break
-                W00 = W01 = W10 = W11 = 0.0
-            else:
-                # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
-                W00, W01, W10, W11 = m11 / det, -m01 / det, -m10 / det, m00 / det
-            tu0, tu1 = tau * absu[0], tau * absu[1]
-            Wt.append(((W00, W10), (W01, W11)))
-            w.append(((W00 * tu0 + W01 * tu1, W10 * tu0 + W11 * tu1),))
-            taus.append(((tau,),))
-            At.append(((a00, a10), (a01, a11)))
-            us.append((absu,))
-        self._bound_rows = (Wt, w, taus, At, us)
-        self._arrays = None                  # the same, stacked (_stacked)
         self._stuck_t = tuple(pc[6][1] == 0 for pc in pieces)
+        # x̄ = W·|x| + w per piece (_bound_rows), W = (I − τ|A|)⁻¹: none when τ|A| is not a
+        # contraction (no bound, never chunk). A stuck piece needs none: its |i| is largest at an
+        # end and ω is held (first_flag), so a plan of stuck pieces (holding) is always bounded and
+        # builds the rows only if a screening of every period asks for them.
+        self._brows = None
+        self._bounded = True if all(self._stuck_t) else self._bound_rows is not None
+        self._arrays = None                  # the same, stacked (_stacked)
         # every piece stuck: over a period only the current moves, i ← a·i + b (``_held_states``)
         T = Ql[-1]
         t00, t03 = T[0][0], T[0][3]
@@ -116,6 +97,35 @@ class PeriodPlan:
         self._screens = {}   # extra guards -> the stacked guard arrays (_guard_arrays)
         self._modes = None   # the period map's modal form (modal.Modes), False where it has none
         self._theta_guards = any(g[2] for pc in pieces for g in pc[4])
+
+    @property
+    def _bound_rows(self):
+        """Per piece (Wt, w, τ, |A|ᵀ, |u|) of the bound ``x̄ = W·|x| + w`` as nested tuples, or
+        None where a moving piece has no bound (τ|A| not a contraction)."""
+        rows = self._brows
+        if rows is None:
+            Wt, w, taus, At, us = [], [], [], [], []
+            for ticks, _, absA, absu, _, _, mode, _ in self.pieces:
+                tau = ticks * self.inv
+                a00, a01, a10, a11 = absA
+                m00, m01, m10, m11 = 1.0 - tau * a00, -tau * a01, -tau * a10, 1.0 - tau * a11
+                det = m00 * m11 - m01 * m10
+                if det <= 0 or tau * (a00 + a11) >= 1.0:
+                    if mode[1] != 0:
+                        rows = self._brows = False
+                        return None
+                    W00 = W01 = W10 = W11 = 0.0
+                else:
+                    # (I − τ|A|)⁻¹ of the 2×2 in closed form; its off-diagonal entries are τ|a|/det ≥ 0
+                    W00, W01, W10, W11 = m11 / det, -m01 / det, -m10 / det, m00 / det
+                tu0, tu1 = tau * absu[0], tau * absu[1]
+                Wt.append(((W00, W10), (W01, W11)))
+                w.append(((W00 * tu0 + W01 * tu1, W10 * tu0 + W11 * tu1),))
+                taus.append(((tau,),))
+                At.append(((a00, a10), (a01, a11)))
+                us.append((absu,))
+            rows = self._brows = (Wt, w, taus, At, us)
+        return rows or None
 
     @property
     def table(self) -> PowerTable:
@@ -146,7 +156,7 @@ class PeriodPlan:
         if X is None:
             X = self.table.augmented_states(x0, n)   # (n+1, 4)
         if not self._bounded or n == 0:
-            return 0, X[:1], 0.0, (0.0, 0.0)
+            return 0, _head(X, 1), 0.0, (0.0, 0.0)
         arrays = self._screens.get(extra_guards)
         if arrays is None:
             if len(self._screens) > 16:
@@ -171,6 +181,7 @@ class PeriodPlan:
             if clean is not None:
                 return clean
         Wt, w, tau, At, u, stuck, qcat = self._stacked()
+        X = np.asarray(X)
         npc = len(self.pieces)
         # St[p]: the state at the start of piece p in each period (rows), St[npc] the next period's
         Xn = X[:n]
@@ -194,7 +205,7 @@ class PeriodPlan:
         bad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=(0, 2))
         k = int(np.argmax(bad)) if bad.any() else n
         if k == 0:
-            return 0, X[:1], 0.0, (0.0, 0.0)
+            return 0, _head(X, 1), 0.0, (0.0, 0.0)
         # |ω| over the k periods: at most the inside bound, at least |ω| at a piece start less the
         # most dω/dt can move it over the piece (a counted run of encoder crossings needs both)
         wk = xb[:, :k, 1]
@@ -217,21 +228,17 @@ class PeriodPlan:
         got = modal.screen(self, modes, x0, n, lambda p: pieces[p][4] + extra_guards, MARGIN)
         if got is None:
             return None
-        return n, X[:n + 1], got[0], got[1]
+        return n, _head(X, n + 1), got[0], got[1]
 
     def _held_states(self, x0, n: int):
         """Rows (i, ω, θ, 1) after k = 0..n periods of a plan whose pieces are all stuck, from a
         shaft at rest: ω stays 0, θ stays, and the current closes in on its periodic value i* as
         ``i_k = i0 + (a^k − 1)·(i0 − i*)``, with ``a^k − 1 = expm1(k·log1p(a − 1))`` (the period
         map's delta entry, to full precision as the power table's delta form keeps it). Holding a
-        position, every PID step builds such a plan: the power table's n products are not needed."""
+        position, every PID step builds such a plan: the power table's n products are not needed,
+        and the rows are computed when read (:class:`HeldRows`)."""
         la, r = self._held             # log1p(a − 1), b / (a − 1) = −i*
-        X = np.empty((n + 1, 4))
-        X[:, 0] = x0[0] + np.expm1(np.arange(n + 1) * la) * (x0[0] + r)
-        X[:, 1] = 0.0
-        X[:, 2] = x0[2]
-        X[:, 3] = 1.0
-        return X
+        return HeldRows(x0[0], x0[2], la, x0[0] + r, n)
 
     def _stuck_ends(self, X, n: int, extra_guards):
         """A chunk whose pieces are all stuck, each guard either without a θ term or on θ alone:
@@ -250,7 +257,7 @@ class PeriodPlan:
         monotone sequence peaks at an end; the computed currents are monotone to rounding, and the
         bound gets a margin). Holding a position (static friction, the PID moving the duty every
         step) is all such chunks."""
-        r = X[[0, 1, n - 1, n]].tolist()
+        r = [X.row(q) for q in (0, 1, n - 1, n)] if type(X) is HeldRows else X[[0, 1, n - 1, n]].tolist()
         Ql = self.Ql
         npc = len(self.pieces)
         # per period (the first, the last): the states at the piece boundaries, from its start row
@@ -272,7 +279,7 @@ class PeriodPlan:
                 for x in xs:
                     if not ci * x[0] + cw * x[1] + ct * x[2] + c0 > scale:
                         return None
-        return n, X[:n + 1], ib, (0.0, wb)
+        return n, _head(X, n + 1), ib, (0.0, wb)
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
@@ -303,6 +310,47 @@ class PeriodPlan:
         return np.stack([X + X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
 
 
+class HeldRows:
+    """The period-start rows (i, ω, θ, 1), k = 0..n, of a chunk of stuck pieces from a shaft at
+    rest (``PeriodPlan._held_states``): ``i_k = i0 + expm1(k·la)·d``, ω = 0, θ held. A row is
+    computed when read (``row``, an integer index); any other index reads the whole array, built
+    once from the same expression, so every reader sees the same values."""
+
+    __slots__ = ("_a", "d", "i0", "la", "n", "th")
+
+    def __init__(self, i0: float, th: float, la: float, d: float, n: int):
+        self.i0, self.th, self.la, self.d, self.n = i0, th, la, d, n
+        self._a = None
+
+    def row(self, k: int):
+        return [self.i0 + math.expm1(k * self.la) * self.d, 0.0, self.th, 1.0]
+
+    def __len__(self) -> int:
+        return self.n + 1
+
+    def __array__(self, dtype=None, copy=None):
+        a = self._a
+        if a is None:
+            a = self._a = np.array([self.row(k) for k in range(self.n + 1)])
+        return a if dtype is None else a.astype(dtype)
+
+    def __getitem__(self, key):
+        if type(key) is int:
+            if not -self.n - 1 <= key <= self.n:
+                raise IndexError(key)
+            return np.array(self.row(key % (self.n + 1)))
+        return np.asarray(self)[key]
+
+    def head(self, m: int):
+        """The first m rows, as rows computed when read."""
+        return self if m == self.n + 1 else HeldRows(self.i0, self.th, self.la, self.d, m - 1)
+
+
+def _head(X, m: int):
+    """The first m rows of period-start states ``X`` (an array or :class:`HeldRows`)."""
+    return X.head(m) if type(X) is HeldRows else X[:m]
+
+
 class ChunkTraj:
     """A motor segment of whole periods: state at any tick from the power table and the pieces."""
 
@@ -324,7 +372,8 @@ class ChunkTraj:
     def _row(self, q: int):
         r = self._rows.get(q)
         if r is None:
-            r = self._rows[q] = self.X[q].tolist()
+            X = self.X
+            r = self._rows[q] = X.row(q) if type(X) is HeldRows else X[q].tolist()
         return r
 
     def _start(self, q: int, p: int):
