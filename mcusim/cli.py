@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import json
 import os
 import signal
@@ -410,6 +411,10 @@ def cmd_run(args) -> int:
                 note = None if endpoint is None else (lambda: _link_line(endpoint))
                 pace = run_realtime(sim, duration, note=note)
             else:
+                # this process runs one simulation: the model built so far lives as long as the
+                # process, so the cycle collector's full passes need not walk it again and again
+                # (about 5 % of a rover run)
+                gc.freeze()
                 run_with_progress(sim, duration, quiet=args.quiet or args.register_log == "-")
         except McusimError as exc:      # a fault found during the run: say when
             if not getattr(exc, "has_time", False):      # (a core fault names its instant itself)
