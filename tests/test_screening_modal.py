@@ -12,6 +12,7 @@ import math
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from screening_switch import with_and_without
 
 import mcusim
 from mcusim.engine import screening
@@ -45,12 +46,7 @@ def moving_plans():
 
 
 def _both(plan, x0, n, extra):
-    screening.MODAL = False
-    try:
-        full = plan.first_flag(x0, n, extra)
-    finally:
-        screening.MODAL = True
-    return plan.first_flag(x0, n, extra), full
+    return with_and_without("MODAL", plan, x0, n, extra)
 
 
 def _holds(fast, full):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from screening_switch import with_and_without
 
 import mcusim
 from mcusim.engine import screening
@@ -37,12 +38,7 @@ def held_plans():
 
 
 def _both(plan, x0, n, extra):
-    screening.STUCK_ENDS = False
-    try:
-        full = plan.first_flag(x0, n, extra)
-    finally:
-        screening.STUCK_ENDS = True
-    return plan.first_flag(x0, n, extra), full
+    return with_and_without("STUCK_ENDS", plan, x0, n, extra)
 
 
 def _same(fast, full):
