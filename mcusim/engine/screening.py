@@ -9,7 +9,7 @@ once:
 
 * the states at the start and end of every piece of every period come from the power table (one
   matrix product per piece), or, for a plan whose pieces are all stuck, from the current's
-  closed form (``_held_states``);
+  closed form (:mod:`mcusim.engine.held`);
 * inside a piece of τ seconds starting at x, ``|x(t)|`` is bounded component-wise by
   ``x̄ = (I − τ|A|)⁻¹(|x| + τ|u|)`` and so ``|ẋ| ≤ D = |A|·x̄ + |u|``; a guard h = c·x + c0 that is
   positive at both ends with ``h_start + h_end > τ·|c|·D`` cannot reach zero inside (a Lipschitz
@@ -19,7 +19,7 @@ once:
   piece's ends, whatever its length.
 
 A chunk whose pieces are all stuck is screened at its first and last period only
-(``_stuck_ends``: every guard is monotone there).
+(:mod:`mcusim.engine.held`: every guard is monotone there).
 
 The first period in which any guard *may* fire ends the chunk: the motor advances to its start
 with the period map's power and runs that period piece by piece, exactly as the edge-by-edge engine
@@ -35,7 +35,8 @@ import math
 import numpy as np
 
 from ..plant import pwl
-from . import modal, periodmap
+from . import held, modal, periodmap
+from .held import HeldRows, head
 from .periodmap import PowerTable
 
 #: screen chunks of stuck pieces at their ends only (PeriodPlan._stuck_ends); off: every period
@@ -156,7 +157,7 @@ class PeriodPlan:
         if X is None:
             X = self.table.augmented_states(x0, n)   # (n+1, 4)
         if not self._bounded or n == 0:
-            return 0, _head(X, 1), 0.0, (0.0, 0.0)
+            return 0, head(X, 1), 0.0, (0.0, 0.0)
         arrays = self._screens.get(extra_guards)
         if arrays is None:
             if len(self._screens) > 16:
@@ -205,7 +206,7 @@ class PeriodPlan:
         bad = ((hs <= scale) | (he <= scale) | (hs + he <= lip + 2.0 * scale)).any(axis=(0, 2))
         k = int(np.argmax(bad)) if bad.any() else n
         if k == 0:
-            return 0, _head(X, 1), 0.0, (0.0, 0.0)
+            return 0, head(X, 1), 0.0, (0.0, 0.0)
         # |ω| over the k periods: at most the inside bound, at least |ω| at a piece start less the
         # most dω/dt can move it over the piece (a counted run of encoder crossings needs both)
         wk = xb[:, :k, 1]
@@ -228,58 +229,15 @@ class PeriodPlan:
         got = modal.screen(self, modes, x0, n, lambda p: pieces[p][4] + extra_guards, MARGIN)
         if got is None:
             return None
-        return n, _head(X, n + 1), got[0], got[1]
+        return n, head(X, n + 1), got[0], got[1]
 
     def _held_states(self, x0, n: int):
-        """Rows (i, ω, θ, 1) after k = 0..n periods of a plan whose pieces are all stuck, from a
-        shaft at rest: ω stays 0, θ stays, and the current closes in on its periodic value i* as
-        ``i_k = i0 + (a^k − 1)·(i0 − i*)``, with ``a^k − 1 = expm1(k·log1p(a − 1))`` (the period
-        map's delta entry, to full precision as the power table's delta form keeps it). Holding a
-        position, every PID step builds such a plan: the power table's n products are not needed,
-        and the rows are computed when read (:class:`HeldRows`)."""
-        la, r = self._held             # log1p(a − 1), b / (a − 1) = −i*
-        return HeldRows(x0[0], x0[2], la, x0[0] + r, n)
+        """Period-start rows of a held chunk from a shaft at rest (:func:`held.held_states`)."""
+        return held.held_states(self, x0, n)
 
     def _stuck_ends(self, X, n: int, extra_guards):
-        """A chunk whose pieces are all stuck, each guard either without a θ term or on θ alone:
-        screened at its first and last period only, or None if a guard may fire there.
-
-        Stuck (ω held at 0, θ held), the current is the only state that moves: in each piece one
-        exponential towards the piece's steady value, so over a period ``i ← a·i + b`` with
-        0 < a < 1. The current at the period starts is then monotone in k (it closes in on the
-        fixed point geometrically), and so is the current at each piece start and end (affine in it
-        with a positive factor), and every guard (affine in i, θ and ω constant) with it; inside a
-        piece it is monotone in t. So a guard positive, beyond the largest rounding margin of the
-        two periods, at both ends of every piece in the first and the last period is positive
-        everywhere in between. The full screening tests such guards at the piece ends alone too
-        (no Lipschitz term: monotone, or on θ alone, which ω = 0 holds), so it would find the same
-        (k = n), and its bounds of |i| and |ω| are the two periods' too, to the last bit (|·| of a
-        monotone sequence peaks at an end; the computed currents are monotone to rounding, and the
-        bound gets a margin). Holding a position (static friction, the PID moving the duty every
-        step) is all such chunks."""
-        r = [X.row(q) for q in (0, 1, n - 1, n)] if type(X) is HeldRows else X[[0, 1, n - 1, n]].tolist()
-        Ql = self.Ql
-        npc = len(self.pieces)
-        # per period (the first, the last): the states at the piece boundaries, from its start row
-        # as x + Q[p]·(x, 1) (what ``ChunkTraj`` reads there), and the next period's start
-        bounds = []
-        for a, b in ((r[0], r[1]), (r[2], r[3])):
-            x = (a[0], a[1], a[2])
-            bounds.append([x] + [periodmap.apply_rows(Ql[p], x) for p in range(1, npc)] + [(b[0], b[1], b[2])])
-        (P0, P1), ib, wb = bounds, 0.0, 0.0
-        for p, pc in enumerate(self.pieces):
-            xs = (P0[p], P0[p + 1], P1[p], P1[p + 1])
-            bi = max(abs(x[0]) for x in xs)
-            bw = max(abs(x[1]) for x in xs)
-            bt = max(abs(x[2]) for x in xs)
-            ib, wb = max(ib, bi), max(wb, bw)
-            for g in pc[4] + extra_guards:
-                ci, cw, ct, c0 = g[0], g[1], g[2], g[3]
-                scale = (bi * abs(ci) + bw * abs(cw) + bt * abs(ct) + abs(c0)) * MARGIN
-                for x in xs:
-                    if not ci * x[0] + cw * x[1] + ct * x[2] + c0 > scale:
-                        return None
-        return n, _head(X, n + 1), ib, (0.0, wb)
+        """Screen a chunk of stuck pieces at its two end periods (:func:`held.stuck_ends`)."""
+        return held.stuck_ends(self, X, n, extra_guards, MARGIN)
 
     def _guard_arrays(self, extra_guards):
         """Each piece's guards and ``extra_guards`` as the stacked arrays :meth:`first_flag`
@@ -308,47 +266,6 @@ class PeriodPlan:
         """Rows: the state at the start of each piece, for periods 0..k-1 (shape (k, pieces, 3))."""
         X = self.table.augmented_states(x0, k - 1)
         return np.stack([X + X @ q.T for q in self.Q[:-1]], axis=1)[:, :, :3]
-
-
-class HeldRows:
-    """The period-start rows (i, ω, θ, 1), k = 0..n, of a chunk of stuck pieces from a shaft at
-    rest (``PeriodPlan._held_states``): ``i_k = i0 + expm1(k·la)·d``, ω = 0, θ held. A row is
-    computed when read (``row``, an integer index); any other index reads the whole array, built
-    once from the same expression, so every reader sees the same values."""
-
-    __slots__ = ("_a", "d", "i0", "la", "n", "th")
-
-    def __init__(self, i0: float, th: float, la: float, d: float, n: int):
-        self.i0, self.th, self.la, self.d, self.n = i0, th, la, d, n
-        self._a = None
-
-    def row(self, k: int):
-        return [self.i0 + math.expm1(k * self.la) * self.d, 0.0, self.th, 1.0]
-
-    def __len__(self) -> int:
-        return self.n + 1
-
-    def __array__(self, dtype=None, copy=None):
-        a = self._a
-        if a is None:
-            a = self._a = np.array([self.row(k) for k in range(self.n + 1)])
-        return a if dtype is None else a.astype(dtype)
-
-    def __getitem__(self, key):
-        if type(key) is int:
-            if not -self.n - 1 <= key <= self.n:
-                raise IndexError(key)
-            return np.array(self.row(key % (self.n + 1)))
-        return np.asarray(self)[key]
-
-    def head(self, m: int):
-        """The first m rows, as rows computed when read."""
-        return self if m == self.n + 1 else HeldRows(self.i0, self.th, self.la, self.d, m - 1)
-
-
-def _head(X, m: int):
-    """The first m rows of period-start states ``X`` (an array or :class:`HeldRows`)."""
-    return X.head(m) if type(X) is HeldRows else X[:m]
 
 
 class ChunkTraj:
