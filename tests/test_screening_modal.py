@@ -126,3 +126,15 @@ def test_the_span_of_two_decaying_modes_holds_every_period(a, c1, c2, d1, d2, n)
     for k in range(n):
         v = a + c1 * math.exp(k * lg[0]) + c2 * math.exp(k * lg[1])
         assert lo <= v <= hi
+
+
+def test_a_nearly_defective_period_map_is_left_to_the_full_screening():
+    """A nearly scalar map (two eigenvalues 1e-9 apart, found by review) has eigenvectors set by a
+    difference that keeps few digits: its modal form at k = 0 still matches the start state, yet
+    misses the current's least value over 512 periods by 1e-4 relative. No modal form is made."""
+    from mcusim.engine.modal import Modes
+    d = [[-0.0005950995650343623, 5.776145349783296e-14], [3.1025761387110107e-12, -0.0005950995655391448]]
+    c = (0.029872761744417834, 58.764392148935855)
+    T = [[d[0][0], d[0][1], 0.0, c[0]], [d[1][0], d[1][1], 0.0, c[1]], [0.0] * 4, [0.0] * 4]
+    with pytest.raises(ValueError):
+        Modes([[[0.0] * 4 for _ in range(4)], T])

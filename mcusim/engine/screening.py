@@ -226,7 +226,7 @@ class PeriodPlan:
         if modes is False or any(g[2] for g in extra_guards) or self._theta_guards:
             return None
         pieces = self.pieces
-        got = modal.screen(self, modes, x0, n, lambda p: pieces[p][4] + extra_guards, MARGIN)
+        got = modal.screen(self, modes, x0, X[n], n, lambda p: pieces[p][4] + extra_guards, MARGIN)
         if got is None:
             return None
         return n, head(X, n + 1), got[0], got[1]
