@@ -92,3 +92,61 @@ def test_a_current_limit_passed_off_an_input_edge_trips_at_the_next_tick_in_both
         bad = [k for k in a if not _close(a[k], b[k])]
         assert not bad, (bad, [a[k] for k in bad][:2], [b[k] for k in bad][:2])
     assert list(sims["reference"].part("ibt2").trip_log) == list(sims["fast"].part("ibt2").trip_log)
+
+
+@pytest.fixture(scope="module")
+def pwm_edge_ticks():
+    """Ticks of the pro-mini's PWM edges on RPWM/LPWM (PB1, PB2) just after 23 ms, edge by edge."""
+    T0 = 16_000_000 * 23 // 1000
+    sim = mcusim.load("pro-mini", overrides={"velocity": 20}, engine="reference")
+    edges = []
+    for pin in ("PB1", "PB2"):
+        sim.pin(pin).listen(lambda net: edges.append(sim.kernel.now))
+    sim.run(until_tick=T0 + 16_000)
+    return sorted({t for t in edges if t >= T0})[:3]
+
+
+@pytest.mark.parametrize("when", ["after the edge, between runs", "before the edge, in an input event"])
+def test_a_limit_lowered_at_a_pwm_edge_tick_trips_as_the_edge_sees_it(pwm_edge_ticks, when):
+    """Edge by edge the edge checks the limits of the switches on after it with the limits it sees:
+    lowered after it (between runs), the trip waits for the next tick's screening; lowered by an
+    event before it in the same tick (PRIO_INPUT), the edge sees the new limits (the fast engine's
+    rebuild stands for the edge then)."""
+    from mcusim.kernel import PRIO_INPUT
+    for T in pwm_edge_ticks:
+        out = {}
+        for engine in ("reference", "fast"):
+            sim = mcusim.load("pro-mini", overrides={"velocity": 20}, engine=engine)
+            bridge = sim.part("ibt2")
+            if when.startswith("after"):
+                sim.run(until_tick=T)
+                bridge.set_params(I_CLH=0.3, I_CLL=0.2)
+            else:
+                sim.kernel.at(T, lambda b=bridge: b.set_params(I_CLH=0.3, I_CLL=0.2), prio=PRIO_INPUT)
+            sim.run(until_tick=T + 10)
+            out[engine] = [t for t in bridge.trip_log if t[0] >= T][:2]
+        assert out["reference"] == out["fast"], (T, out)
+        assert out["reference"]
+        if when.startswith("after"):
+            assert out["reference"][0][0] == T + 1
+
+
+@pytest.mark.parametrize("action", ["glitch", "drop"])
+def test_a_fault_after_a_motor_rebuild_at_a_crossing_tick_sees_the_crossing(crossing_ticks, action):
+    """Edge by edge, any rebuild of the motor at a tick (here a load change by an input event)
+    advances it there and fires the encoder crossing due then: a fault injected after it acts on
+    the position after the crossing."""
+    from mcusim.kernel import PRIO_INPUT
+    for T in crossing_ticks:
+        out = {}
+        for engine in ("reference", "fast"):
+            sim = mcusim.load("nucleo-f746", overrides=NUCLEO, engine=engine)
+            enc, motor = sim.part("encoder1"), sim.part("motor1")
+
+            def act(enc=enc, motor=motor):
+                motor.set_params(load_torque=motor.params.load_torque + 1e-6)
+                enc.glitch("A", 2) if action == "glitch" else enc.drop_edges(1)
+            sim.kernel.at(T, act, prio=PRIO_INPUT)
+            sim.run(until_tick=T + sim.timebase.base_hz // 200)          # 5 ms on
+            out[engine] = (_cnt(sim, "TIM3"), enc.position, enc.dropped)
+        assert out["reference"] == out["fast"], (T, out)

@@ -474,6 +474,7 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
                 self._edge_ev.cancel()
                 self._edge_ev = None
             self._legs_seen = None
+            self.motor.edge_tick = self.kernel.now      # an input edge: the limits are checked
             self.motor.input_changed()      # the motor asks drive_schedule()
             return
         if self.legs != self._legs_seen:

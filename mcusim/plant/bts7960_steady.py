@@ -61,8 +61,11 @@ class SteadyDrive:
         fault overrides them, else None (the motor asks drive_state(); edges come one by one)."""
         self._close_account_now()
         now = self.kernel.now
-        if self._switches_now():
-            self._check_now()
+        m = self.motor
+        if m.edge_tick == now:
+            m.edge_tick = None
+            if self._switches_now():
+                self._check_now()
         waves = self._waves()
         halves = self._half.values()
         if not waves or any(h.fault or h.overtemp for h in halves):
@@ -99,9 +102,11 @@ class SteadyDrive:
 
     def _switches_now(self) -> bool:
         """The legs change at this tick (an input edge, an enable, a fault's end): the edge-by-edge
-        bridge checks the limits of the switches that are on from here at that edge. A rebuild at
-        any other tick (a supply, load or parameter change) does not: the screening of the new
-        segment finds a limit already passed, at the next tick, in both engines."""
+        bridge checks the limits of the switches that are on from here at that edge, with the
+        state the edge sees. A rebuild standing for no edge (``motor.edge_tick``: a supply, load or
+        parameter change after the tick's hardware events, a chunk's end inside a piece) does not
+        check: the screening of the new segment finds a limit already passed, at the next tick, in
+        both engines."""
         now = self.kernel.now
         for t_c, s in reversed(self._hist):
             if t_c < now:

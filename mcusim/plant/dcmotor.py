@@ -194,6 +194,10 @@ class DcMotor(PeriodicDrive):
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
         self._stale = False        # fast engine: inputs changed at this tick, rebuild due
+        # fast engine: the tick whose drive edge the next rebuild stands for (a piece's end, or a
+        # change made before that tick's hardware events, which edge by edge the edge then sees);
+        # a bridge checks its switches' limits there only (Bts7960Bridge)
+        self.edge_tick = None
         self._rebuild_ev = None
         self._ev_passive = None    # fast engine: next passive guard (encoder threshold) in a segment
         self._passive = ()
@@ -251,6 +255,8 @@ class DcMotor(PeriodicDrive):
             fn()
             self._grow = False
             if self._fast:
+                if self.kernel.early_in_tick(PRIO_HW):
+                    self.edge_tick = self.kernel.now
                 self._defer_rebuild()
             else:
                 self._rebuild()
@@ -431,6 +437,10 @@ class DcMotor(PeriodicDrive):
                 self._ev = None
             for g in guards:
                 g[5].on_guard(g[6])
+        for prov in self._providers:            # a crossing a lazy encoder left due at this tick
+            due = getattr(prov, "fire_due", None)
+            if due is not None:
+                due()
         ev = self._ev_passive
         if ev is not None and ev.time == now:   # an encoder threshold due at this very tick: an
             ev.cancel()                         # input change got here first; it still fires now

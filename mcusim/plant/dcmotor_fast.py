@@ -279,6 +279,7 @@ class PeriodicDrive:
     def _on_piece_end(self):
         self._ev = None
         self._grow = False
+        self.edge_tick = self.kernel.now     # the drive's switching tick: its edge, edge by edge
         self._sync()
 
     def _rebuild_periodic(self, sched, x0):

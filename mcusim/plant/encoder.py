@@ -136,6 +136,7 @@ class QuadratureEncoder:
         self._slip = 0                     # outputs show the state of position - _slip
         self._serve_hint = None            # fast engine: (cpu, vectors) of the last routes
         self._lazy = None                  # fast engine: the lazy-counting stretch (_Lazy) or None
+        self._due_ev = None                # fast engine: a crossing due now left by a stretch ended early
         self.lazy_stretches = 0            # fast engine: stretches counted lazily so far
         self.counted_edges = 0             # fast engine: served edges a counted run served (served._count)
         self._retry = None                 # after a stretch: the gap of its decoder (retry after an edge)
@@ -178,8 +179,8 @@ class QuadratureEncoder:
         very tick is its plant event (PRIO_PLANT there): an event earlier in the tick (hardware, a
         scenario's fault or input) still sees the position before it."""
         now = self.kernel.now
-        if now and self.kernel.early_in_tick(PRIO_PLANT):
-            return self.k_at(now - 1)
+        if now and self.kernel.early_in_tick(PRIO_PLANT) and self.motor._t0 != now:
+            return self.k_at(now - 1)       # (a motor advanced to now has fired it, as edge by edge)
         return self.k_at(now)
 
     def _k_of(self, th: float) -> int:
@@ -264,10 +265,20 @@ class QuadratureEncoder:
         self.motor.passive_changed()
         if k != self.k_at(now):
             # a crossing due at this tick that an earlier event of the tick ended the stretch
-            # before: it comes at the plant's priority, as the edge-by-edge encoder's event does
-            self.kernel.at(now, self._due_crossing, prio=PRIO_PLANT)
+            # before: it comes at the plant's priority, as the edge-by-edge encoder's event does,
+            # or when the motor is advanced to now before that (fire_due)
+            self._due_ev = self.kernel.at(now, self._due_crossing, prio=PRIO_PLANT)
+
+    def fire_due(self) -> None:
+        """The motor is advanced to now: a crossing due now that a lazy stretch left behind fires
+        here, as the edge-by-edge motor's advance fires a guard due at its tick."""
+        ev = self._due_ev
+        if ev is not None and not ev.cancelled and ev.time == self.kernel.now:
+            ev.cancel()
+            self._due_crossing()
 
     def _due_crossing(self) -> None:
+        self._due_ev = None
         k = self.k_at(self.kernel.now)
         if k != self._pos and self._lazy is None:
             self.on_guard(1 if k > self._pos else -1)
