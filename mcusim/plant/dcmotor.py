@@ -198,6 +198,7 @@ class DcMotor(PeriodicDrive):
         # change made before that tick's hardware events, which edge by edge the edge then sees);
         # a bridge checks its switches' limits there only (Bts7960Bridge)
         self.edge_tick = None
+        self._due = []             # fast engine: encoders with a crossing due now (fire_due at an advance)
         self._rebuild_ev = None
         self._ev_passive = None    # fast engine: next passive guard (encoder threshold) in a segment
         self._passive = ()
@@ -437,10 +438,10 @@ class DcMotor(PeriodicDrive):
                 self._ev = None
             for g in guards:
                 g[5].on_guard(g[6])
-        for prov in self._providers:            # a crossing a lazy encoder left due at this tick
-            due = getattr(prov, "fire_due", None)
-            if due is not None:
-                due()
+        if self._due:                           # a crossing a lazy encoder left due at this tick
+            due, self._due = self._due, []
+            for prov in due:
+                prov.fire_due()
         ev = self._ev_passive
         if ev is not None and ev.time == now:   # an encoder threshold due at this very tick: an
             ev.cancel()                         # input change got here first; it still fires now

@@ -268,6 +268,7 @@ class QuadratureEncoder:
             # before: it comes at the plant's priority, as the edge-by-edge encoder's event does,
             # or when the motor is advanced to now before that (fire_due)
             self._due_ev = self.kernel.at(now, self._due_crossing, prio=PRIO_PLANT)
+            self.motor._due.append(self)
 
     def fire_due(self) -> None:
         """The motor is advanced to now: a crossing due now that a lazy stretch left behind fires
