@@ -144,6 +144,31 @@ def test_counted_runs_of_the_rovers_four_wheels_end_where_no_handler_is_in_fligh
     assert sum(p.counted_edges for p in a.parts.values() if hasattr(p, "counted_edges")) > 1000
 
 
+def test_a_run_judged_doomed_before_locating_any_crossing_would_serve_nothing(monkeypatch):
+    """``_doomed`` settles a run from first crossings and earliest returns only: wherever it says
+    no run can serve the owner's first crossing, the counted and the planned run (which locate
+    every crossing they need) serve nothing either. Checked on the rover, whose wheels' edges
+    fall on nearby ticks of four modules (most failed runs end there)."""
+    import mcusim.engine.served as served_mod
+
+    real = served_mod._doomed
+    judged = []
+
+    def checked(streams, barrier):
+        doomed = real(streams, barrier)
+        if doomed:
+            judged.append(barrier)
+            # both return False without changing anything when nothing is served
+            assert not served_mod._count(streams[0].enc.kernel, streams, barrier)
+            assert not served_mod._plan(streams[0].enc.kernel, streams, barrier)
+        return doomed
+
+    monkeypatch.setattr(served_mod, "_doomed", checked)
+    sim = mcusim.load("elementall", overrides={"cmd_vel.linear": 0.5, "cmd_vel.angular": 0.2})
+    sim.run(seconds=0.6)
+    assert len(judged) > 100
+
+
 @settings(max_examples=4, deadline=None)
 @example(v=20.0, load=0.0, j_scale=1.0, ms=120, step_ms=1.3)
 @given(v=st.floats(-80.0, 80.0), load=st.floats(-25.0, 25.0), j_scale=st.sampled_from([0.5, 1.0, 4.0]),

@@ -184,7 +184,30 @@ def serve_run(kernel, owner) -> bool:
         cpus.update(other.cpus)
         head = kernel.first_queued(absorbed)
     barrier = None if head is None else (head[0], head[1])
+    if barrier is not None and _doomed(streams, barrier):
+        return False
     return _count(kernel, streams, barrier) or _plan(kernel, streams, barrier)
+
+
+def _doomed(streams, barrier) -> bool:
+    """True where no run can serve the owner's first crossing (``streams[0]``), judged from each
+    stream's first crossing and the earliest its handler could return (``first_return``), before
+    any crossing is located. A served handler must return before the barrier; and a crossing of
+    another stream that comes before a served handler returns must be served too (the prefix rule
+    of :func:`_plan`, which :func:`_count` keeps), so its handler must also return before the
+    barrier. Where the wheels' edges fall on nearby ticks of several modules and the barrier is a
+    handler of one of them, this settles most failed runs at a fraction of their planning."""
+    top = streams[0].first_return()
+    if (top, PRIO_CPU) >= barrier:
+        return True
+    for s in sorted(streams[1:], key=lambda x: x.pending[0]):
+        if s.pending[0] >= top:
+            break           # not needed by the owner's crossing (nor is any later one)
+        ret = s.first_return()
+        if (ret, PRIO_CPU) >= barrier:
+            return True
+        top = max(top, ret)
+    return False
 
 
 def _count(kernel, streams, barrier) -> bool:

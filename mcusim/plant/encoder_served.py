@@ -30,6 +30,12 @@ class Crossings:
         self.pos, self.la, self.lb = enc._pos, enc.a.level, enc.b.level
         self.last = None        # the last crossing committed
 
+    def first_return(self) -> int:
+        """The earliest tick at which the handler of the stream's first crossing could return
+        (whichever output it changes)."""
+        t = self.pending[0]
+        return min(self.ra.returns(t), self.rb.returns(t))
+
     def plan(self, t, d):
         """The crossing at tick ``t`` in direction ``d`` as a served edge, or None if it is not one
         edge of one output (more than one threshold in the tick, or both outputs change)."""
