@@ -155,7 +155,8 @@ class Cpu:
         """(entry ticks, handler ticks, form) when a request of ``irqn`` raised now would be taken at
         once and be all the CPU does until its handler returns, and the handler has a closed form
         that stands: no handler running, global interrupts on, nothing pending, interrupt lines
-        untraced, no task running, ready or waiting for an interrupt. Else None."""
+        untraced, no task waiting for an interrupt, none ready but the current one, and that one
+        (if any) in a busy wait (:meth:`busy_task`). Else None."""
         form = self.closed_forms.get(irqn)
         if form is None or self.stack or self._in_code:
             return None
@@ -163,14 +164,36 @@ class Cpu:
         if quiet is None or not quiet():
             return None
         rtos = self.rtos
-        if rtos is not None and (rtos.current is not None or rtos._wfi_blocked
-                                 or any(t.state == "ready" for t in rtos.tasks)):
-            return None
+        if rtos is not None:
+            cur = rtos.current
+            if (rtos._wfi_blocked or (cur is not None and cur.end_ev is None)
+                    or any(t.state == "ready" and t is not cur for t in rtos.tasks)):
+                return None
         vec = self.vectors.get(irqn)
         if vec is None or vec[0] is not form.handler or not form.valid():
             return None
         period = self.clock.period
         return self.entry_latency * period, vec[1] * period, form
+
+    def busy_task(self):
+        """The task in a busy wait (``await cpu.cycles(n)``, its end queued) that a handler taken
+        now would preempt, or None. Such a task only waits for its end: a handler entered at tick
+        t and returning at r moves that end by r − t (``_pause`` at the dispatch, ``_resume`` at
+        the return), which is all it sees of the handler. A served handler moves it the same way
+        (:meth:`delay_busy_task`)."""
+        rtos = self.rtos
+        if rtos is None or self.stack:
+            return None
+        cur = rtos.current
+        return cur if cur is not None and cur.end_ev is not None else None
+
+    def delay_busy_task(self, ticks: int) -> None:
+        """Served handlers took ``ticks`` (their dispatch to return) out of the busy task's wait:
+        its end moves as edge by edge, where each one pauses and resumes it."""
+        task = self.busy_task()
+        ev = task.end_ev
+        ev.cancel()
+        task.end_ev = self.kernel.at(ev.time + ticks, self._finish, task, prio=PRIO_CPU)
 
     @staticmethod
     def cycles(n: int) -> _Req:

@@ -144,6 +144,50 @@ def test_counted_runs_of_the_rovers_four_wheels_end_where_no_handler_is_in_fligh
     assert sum(p.counted_edges for p in a.parts.values() if hasattr(p, "counted_edges")) > 1000
 
 
+def test_edges_during_a_busy_loop_pass_are_served_and_delay_its_end_as_edge_by_edge():
+    """A handler taken while ``loop()`` burns its cycles pauses it: edge by edge the pass's end
+    moves by the handler's dispatch-to-return ticks (``Cpu._pause``/``_resume``). A served
+    handler moves it the same way (``Cpu.delay_busy_task``). Here the work pass takes 6 of every
+    10 ms, so most edges fall inside one; they are served, and every state (the queued ends of
+    the pass among them) agrees with the reference at observation points that cut passes."""
+    sets = {"velocity": 20, "firmware.cycles_loop_work": 100_000}
+    fast = run_both(lambda e: mcusim.load("pro-mini", overrides=sets, engine=e), 0.06, 0.0013)
+    assert served(fast) > 0.8 * fast.part("encoder").edges
+
+
+def _with_task_steps(sim):
+    """``sim`` and the list of ticks at which its pro-mini's task code runs (``Rtos._step``): where
+    each loop pass ends, the timing ``loop()`` sees of the handlers that preempted it."""
+    rtos = sim.members[next(iter(sim.members))]["mcu"].rtos
+    log, step = [], rtos._step
+
+    def logged(task):
+        log.append(sim.kernel.now)
+        return step(task)
+    rtos._step = logged             # before the first pass: every later wait ends in ``logged``
+    return sim, log
+
+
+@settings(max_examples=6, deadline=None)
+@example(v=-20.0, work=20_000, idle=200, sample_ms=10)
+@given(v=st.floats(-25.0, 25.0), work=st.integers(1, 60_000), idle=st.integers(1, 3000),
+       sample_ms=st.sampled_from([1, 2, 10]))
+def test_loop_passes_end_at_the_same_ticks_when_the_edges_inside_them_are_served(v, work, idle, sample_ms):
+    """Loop passes of any length against edges of any rate: each pass's end lands before, at and
+    after the served edges' dispatches (a dispatch at the pass's end tick still comes first, one
+    a tick later does not), and the task's code runs at the same ticks as edge by edge. (The
+    example: a rule that served edges dispatched up to 16 ticks after a pass's end fails it.)"""
+    sets = {"velocity": v, "firmware.cycles_loop_work": work, "firmware.cycles_loop_idle": idle,
+            "firmware.sample_ms": sample_ms}
+    (ref, a), (fast, b) = (_with_task_steps(mcusim.load("pro-mini", overrides=sets, engine=e))
+                           for e in ("reference", "fast"))
+    ref.run(seconds=0.2)
+    fast.run(seconds=0.2)
+    assert a == b
+    sa, sb = snapshot(ref), snapshot(fast)
+    assert not [k for k in sa if not _close(sa[k], sb[k])]
+
+
 def test_a_run_judged_doomed_before_locating_any_crossing_would_serve_nothing(monkeypatch):
     """``_doomed`` settles a run from first crossings and earliest returns only: wherever it says
     no run can serve the owner's first crossing, the counted and the planned run (which locate

@@ -16,17 +16,25 @@ when:
   is one request of one vector (``served_vector``: INTn in any-change mode, enabled, its flag
   clear), one driver, no force, no waveform (:func:`route`);
 * the CPU would take that request at once and do nothing else (``Cpu.served``: no handler running
-  or pending, global interrupts on, no task running, ready or waiting for an interrupt, interrupt
-  lines not traced) and the handler declares a closed form that still stands for it (the handler
-  bound, no register log watching the reads it skips). Both are looked up when the stream joins
-  the run and hold at its later crossings because no event that is not a served crossing comes
-  before them (the barrier below);
+  or pending, global interrupts on, no task waiting for an interrupt or ready but the current one,
+  which may only be in a busy wait, interrupt lines not traced) and the handler declares a closed
+  form that still stands for it (the handler bound, no register log watching the reads it skips).
+  Both are looked up when the stream joins the run and hold at its later crossings because no
+  event that is not a served crossing comes before them (the barrier below);
 * exactly one output changes, by one threshold;
 * its handler's return (:meth:`Route.returns`: first CPU clock edge at or after the edge, plus
   entry latency and handler cycles) comes before the first queued event that is not a crossing
   absorbed into the run (the *barrier*), and within the run's horizon;
 * the stream's next crossing comes after that return (otherwise the handler would read the later
   levels, or the next request would wait or be lost: timing interacts).
+
+**Busy tasks.** A task in a busy wait (``await cpu.cycles(n)``: ``loop()``'s pass) only waits for
+its end. Edge by edge a handler pauses it at the dispatch and resumes it at the return, moving the
+end by the handler's ticks. A served handler moves it the same way: after the run, by the busy time
+the served handlers on its CPU were charged (``Cpu.delay_busy_task``). Its end is no barrier then,
+but where it comes before the barrier it bounds the run: an edge on its CPU is served if its
+request is dispatched by the end as moved so far (dispatch precedes a task's end within a tick),
+any other handler must return before it (:func:`_plan`; such runs are not counted).
 
 Several streams on different CPUs share a run (the rover's wheels that turn alike put their edges
 on the same ticks of two modules): a queued crossing event of another encoder that comes before
@@ -125,13 +133,14 @@ def route(net):
 
 class Item:
     """One crossing a stream may serve: its tick, its handler's return, the stream's next
-    crossing (tick, direction, the guards firing there) or None, and what the stream needs to
-    commit it."""
+    crossing (tick, direction, the guards firing there) or None, what the stream needs to
+    commit it, and the :class:`Route` its edge takes (None for a counted run's last one)."""
 
-    __slots__ = ("data", "nxt", "ret", "stream", "t")
+    __slots__ = ("data", "nxt", "ret", "route", "stream", "t")
 
-    def __init__(self, stream, t, ret, nxt, data):
+    def __init__(self, stream, t, ret, nxt, data, route=None):
         self.stream, self.t, self.ret, self.nxt, self.data = stream, t, ret, nxt, data
+        self.route = route
 
 
 def _stream_of(ev, cpus):
@@ -174,19 +183,49 @@ def serve_run(kernel, owner) -> bool:
     streams = [owner]
     cpus = set(owner.cpus)
     absorbed = set()
+    busy = {}                   # end event of a busy task of the run's CPUs -> that CPU
+    ends = {}                   # those before the barrier: CPU -> tick
+    _note_busy(owner.cpus, busy)
     head = kernel.first_queued()
     while head is not None:
-        other = _stream_of(head[3], cpus)
+        ev = head[3]
+        if ev in busy:          # moved by the handlers the run serves on its CPU: not a barrier
+            ends[busy[ev]] = ev.time
+            absorbed.add(ev)
+            head = kernel.first_queued(absorbed)
+            continue
+        other = _stream_of(ev, cpus)
         if other is None:
             break
         streams.append(other)
-        absorbed.add(head[3])
+        absorbed.add(ev)
         cpus.update(other.cpus)
+        _note_busy(other.cpus, busy)
         head = kernel.first_queued(absorbed)
     barrier = None if head is None else (head[0], head[1])
     if barrier is not None and _doomed(streams, barrier):
         return False
-    return _count(kernel, streams, barrier) or _plan(kernel, streams, barrier)
+    charged = {cpu: cpu.busy_ticks for cpu in busy.values()}
+    if ends:
+        done = _plan(kernel, streams, barrier, ends)
+    else:           # every handler served returns before the barrier, so before each busy task's end
+        done = _count(kernel, streams, barrier) or _plan(kernel, streams, barrier)
+    if done:
+        # the handlers served on a busy task's CPU moved its end by their ticks: the busy time
+        # they were charged (Route.serve, Route.charge)
+        for cpu, before in charged.items():
+            if cpu.busy_ticks != before:
+                cpu.delay_busy_task(cpu.busy_ticks - before)
+    return done
+
+
+def _note_busy(cpus, busy) -> None:
+    """Add the end events of the busy tasks (:meth:`mcusim.firmware.Cpu.busy_task`) of ``cpus``
+    to ``busy`` (event -> CPU)."""
+    for cpu in cpus:
+        task = cpu.busy_task()
+        if task is not None:
+            busy[task.end_ev] = cpu
 
 
 def _doomed(streams, barrier) -> bool:
@@ -261,14 +300,21 @@ def _count(kernel, streams, barrier) -> bool:
     return True
 
 
-def _plan(kernel, streams, barrier) -> bool:
+def _plan(kernel, streams, barrier, ends=None) -> bool:
     """The run crossing by crossing, in time order, as long as each one is served (module
     docstring). Of the planned crossings, the longest prefix in time order is committed whose
     handlers all return before the first crossing left out: edge by edge, that crossing's events
-    come after them all, whichever stream it belongs to."""
+    come after them all, whichever stream it belongs to.
+
+    ``ends``: CPU -> the end tick of its busy task (:meth:`mcusim.firmware.Cpu.busy_task`). The
+    task's code runs there, so it bounds the run as a barrier does, except that each handler
+    served on that CPU moves it by the handler's ticks (dispatch to return): a crossing is served
+    there if its request is dispatched by then (dispatch comes before a task's end at one tick),
+    and every other handler must return before it."""
     horizon = kernel.horizon
     plan = []
     t_stop = None
+    ends = dict(ends) if ends else {}
 
     def before_barrier(time, prio):
         return barrier is None or (time, prio) < barrier
@@ -286,9 +332,13 @@ def _plan(kernel, streams, barrier) -> bool:
             break
         item = s.plan(t, s.pending[1])
         if (item is None or item.ret > horizon or (item.nxt is not None and item.nxt[0] <= item.ret)
-                or not before_barrier(item.ret, PRIO_CPU)):
+                or not before_barrier(item.ret, PRIO_CPU)
+                or (ends and not _before_ends(item, ends))):
             t_stop = t
             break
+        cpu = item.route.cpu
+        if cpu in ends:
+            ends[cpu] += item.route.ticks
         plan.append(item)
         s.pending = item.nxt
     # the longest prefix whose handlers all return before the first crossing left out
@@ -304,4 +354,18 @@ def _plan(kernel, streams, barrier) -> bool:
         item.stream.commit(item)
     for s in streams:
         s.finish()
+    return True
+
+
+def _before_ends(item, ends) -> bool:
+    """Whether ``item`` comes before the busy tasks' ends (``ends``, as moved so far): its request
+    dispatched by its own CPU's (the dispatch at PRIO_DISPATCH precedes the task's end at
+    PRIO_CPU in one tick), its return before the others'."""
+    route = item.route
+    for cpu, end in ends.items():
+        if cpu is route.cpu:
+            if item.ret - route.ticks > end:
+                return False
+        elif item.ret >= end:
+            return False
     return True

@@ -354,7 +354,8 @@ class QuadratureEncoder:
         if first and hint is not None:
             # the crossing due now: its handler takes at least entry latency + the cheaper of the
             # two handlers as bound now; if an event of no motor comes before that return (a
-            # motor's may be a crossing to absorb), the route lookups would be in vain
+            # motor's may be a crossing to absorb, a busy task's end is moved by the handler),
+            # the route lookups would be in vain
             cpu, va, vb = hint
             ha, hb = cpu.vectors.get(va), cpu.vectors.get(vb)
             if ha is not None and hb is not None:
@@ -362,7 +363,9 @@ class QuadratureEncoder:
                 ticks = (cpu.entry_latency + min(ha[1], hb[1])) * cpu.clock.period
                 if (head is not None and head[0] < tick + ticks
                         and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
-                    return None
+                    task = cpu.busy_task()
+                    if task is None or head[3] is not task.end_ev:
+                        return None
         ra, rb = served.route(self.a), served.route(self.b)
         if ra is None or rb is None:
             return None
