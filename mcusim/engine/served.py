@@ -186,6 +186,9 @@ def serve_run(kernel, owner) -> bool:
     busy = {}                   # end event of a busy task of the run's CPUs -> that CPU
     ends = {}                   # those before the barrier: CPU -> tick
     _note_busy(owner.cpus, busy)
+    stranger = _first_stranger(kernel, busy)
+    if stranger is not None and (owner.first_return(), PRIO_CPU) >= (stranger[0], stranger[1]):
+        return False        # the barrier comes before the owner's first handler could return
     head = kernel.first_queued()
     while head is not None:
         ev = head[3]
@@ -217,6 +220,21 @@ def serve_run(kernel, owner) -> bool:
             if cpu.busy_ticks != before:
                 cpu.delay_busy_task(cpu.busy_ticks - before)
     return done
+
+
+def _first_stranger(kernel, busy):
+    """The first queued entry that no run could absorb (neither a motor's queued crossing nor one
+    of the ``busy`` tasks' ends), or None: the barrier is no later, so where it comes before the
+    owner's first return the run is settled without making any other stream (:func:`_doomed`)."""
+    skip = set()
+    while True:
+        head = kernel.first_queued(skip)
+        if head is None:
+            return None
+        ev = head[3]
+        if ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream"):
+            return head
+        skip.add(ev)
 
 
 def _note_busy(cpus, busy) -> None:
