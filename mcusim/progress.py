@@ -31,7 +31,7 @@ def run_with_progress(sim, duration, *, quiet: bool = False, stream=None, after:
     drawn = False
     hz = sim.timebase.base_hz
     while sim.kernel.now < end:
-        sim.run(until=min(end, sim.kernel.now + step) / hz)
+        sim.run(until_tick=min(end, sim.kernel.now + step))
         wall = time.perf_counter() - t0
         if wall < after:
             continue

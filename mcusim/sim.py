@@ -90,7 +90,13 @@ class Simulation:
         elif until is not None:
             end = self.timebase.ticks(until, rounding=True)
         else:
+            if isinstance(until_tick, bool) or not isinstance(until_tick, int) and (
+                    not isinstance(until_tick, float) or not until_tick.is_integer()):
+                raise McusimError(f"run(until_tick={until_tick!r}): expected a whole number of base ticks")
             end = int(until_tick)
+        if end < self.kernel.now:
+            raise McusimError(f"run(): the end asked for (tick {end}) is before now (tick {self.kernel.now}, "
+                              f"{self.time_s:.9g} s); until= and until_tick= are absolute")
         t0 = _wall.perf_counter()
         try:
             self.kernel.run_until(end, stop=stop)

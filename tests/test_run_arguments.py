@@ -1,0 +1,37 @@
+"""``Simulation.run``: one clear error for an end that cannot be reached, never a silent no-op."""
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import mcusim
+from mcusim.errors import McusimError
+
+
+@pytest.fixture(scope="module")
+def sim():
+    s = mcusim.load("pro-mini")
+    s.run(seconds="1ms")
+    return s
+
+
+@pytest.mark.parametrize("kw", [{"until_tick": 5}, {"until": "0.5ms"}, {"until_tick": -1}])
+def test_an_absolute_end_before_now_is_an_error_not_a_silent_no_op(sim, kw):
+    now = sim.now
+    with pytest.raises(McusimError, match="before now"):
+        sim.run(**kw)
+    assert sim.now == now
+
+
+@pytest.mark.parametrize("tick", [1.5, True, "16000"])
+def test_until_tick_takes_a_whole_number_of_base_ticks(sim, tick):
+    with pytest.raises(McusimError, match="whole number of base ticks"):
+        sim.run(until_tick=tick)
+
+
+@settings(max_examples=20, deadline=None)
+@given(ahead=st.integers(0, 2000))
+def test_until_tick_now_or_later_ends_exactly_there(sim, ahead):
+    end = sim.now + ahead
+    sim.run(until_tick=float(end) if ahead % 2 else end)
+    assert sim.now == end
