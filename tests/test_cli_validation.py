@@ -6,6 +6,7 @@ import os
 
 import pytest
 
+import mcusim
 from mcusim.cli import main
 
 
@@ -221,3 +222,13 @@ def test_a_zero_or_unitless_duration_is_named_as_the_user_wrote_it(capsys):
     assert main(["run", "nucleo-f746", "--duration", "0"]) == 2
     err = capsys.readouterr().err
     assert "needs a unit" in err and "0s or 0ms" not in err and "500ms or 2s" in err
+
+
+def test_the_thesis_arr_of_65536_counts_is_refused_as_the_16_bit_timer_cannot_hold_it(capsys):
+    """Was a ZeroDivisionError traceback: the thesis sets ARR = counts per turn, 65536 reads back
+    as 0 from TIM3's 16-bit ARR, and its CNT/ARR divides by zero. The correct variant's
+    ARR = 65535 fits, and the thesis takes 65535."""
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--set", "firmware.variant=thesis",
+                          "--set", "firmware.counts_per_turn=65536"], "16-bit encoder timers cannot hold")
+    for sets in (["firmware.counts_per_turn=65536"], ["firmware.variant=thesis", "firmware.counts_per_turn=65535"]):
+        mcusim.load("nucleo-f746", overrides=dict(s.split("=") for s in sets)).run(seconds="1ms")

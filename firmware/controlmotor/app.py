@@ -123,6 +123,12 @@ class ControlMotorFirmware:
             BRIDGE_B: Pwm(self.htim2, 1, hal_tim.TIM_CHANNEL_1, hal_tim.TIM_CHANNEL_4, dev.GPIOF, 5, v),
         }
         cpt, filt = self.p["counts_per_turn"], self.p["encoder_filter"]
+        if v == "thesis" and cpt > 0xFFFF:
+            # the thesis sets ARR = counts per turn: 65536 reads back as 0 from the 16-bit ARR,
+            # which stops the counter, and its CNT/ARR then divides by zero
+            raise ConfigError(f"firmware.counts_per_turn = {cpt} with firmware.variant = 'thesis': the thesis "
+                              f"sets ARR = counts per turn, which the 16-bit encoder timers cannot hold "
+                              f"(at most 65535 there; the correct variant sets ARR = counts - 1)")
         self.enc = {
             BRIDGE_A: Encoder(self.htim3, cpt, TIM3_IRQn, v, filter=filt),
             BRIDGE_B: Encoder(self.htim4, cpt, TIM4_IRQn, v, filter=filt),
