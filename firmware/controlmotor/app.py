@@ -51,7 +51,7 @@ DEFAULTS = {
     "encoder_filter": Param(0, min=0, max=15, doc="ICxF input filter of the encoder timers"),
     # ARR = counts - 1 must fit the 16-bit encoder timers; one quadrature cycle is 4 counts
     "counts_per_turn": Param(1920, min=4, max=65536, unit="counts/output turn",
-                             doc="encoder counts per output-shaft turn (64 CPR x 30:1)"),
+                             doc="encoder counts per output-shaft turn (64 CPR x 30:1); variant thesis: at most 65535"),
     # declared execution costs in core cycles (estimates for -O2 code on the M7 with FPU)
     "cycles_pid": Param(1500, min=0, max=10_000_000, unit="cycles", doc="cost of one PID step"),
     "cycles_encoder_isr": Param(120, min=0, max=1_000_000, unit="cycles", doc="cost of the encoder ISR"),
