@@ -186,9 +186,8 @@ def serve_run(kernel, owner) -> bool:
     busy = {}                   # end event of a busy task of the run's CPUs -> that CPU
     ends = {}                   # those before the barrier: CPU -> tick
     _note_busy(owner.cpus, busy)
-    stranger = _first_stranger(kernel, busy)
-    if stranger is not None and (owner.first_return(), PRIO_CPU) >= (stranger[0], stranger[1]):
-        return False        # the barrier comes before the owner's first handler could return
+    if _stranger_first(kernel, owner, busy):
+        return False
     head = kernel.first_queued()
     while head is not None:
         ev = head[3]
@@ -222,18 +221,19 @@ def serve_run(kernel, owner) -> bool:
     return done
 
 
-def _first_stranger(kernel, busy):
-    """The first queued entry that no run could absorb (neither a motor's queued crossing nor one
-    of the ``busy`` tasks' ends), or None: the barrier is no later, so where it comes before the
-    owner's first return the run is settled without making any other stream (:func:`_doomed`)."""
+def _stranger_first(kernel, owner, busy) -> bool:
+    """True where the first queued event that no run could absorb (neither a motor's queued
+    crossing nor one of the ``busy`` tasks' ends) comes before the owner's first handler could
+    return: the barrier is no later, so the run cannot serve even that crossing, and this is
+    settled without making any other stream (:func:`_doomed` after them)."""
     skip = set()
     while True:
         head = kernel.first_queued(skip)
         if head is None:
-            return None
+            return False
         ev = head[3]
         if ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream"):
-            return head
+            return (owner.first_return(), PRIO_CPU) >= (head[0], head[1])
         skip.add(ev)
 
 
