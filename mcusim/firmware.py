@@ -177,10 +177,10 @@ class Cpu:
 
     def busy_task(self):
         """The task in a busy wait (``await cpu.cycles(n)``, its end queued) that a handler taken
-        now would preempt, or None. Such a task only waits for its end: a handler entered at tick
-        t and returning at r moves that end by r − t (``_pause`` at the dispatch, ``_resume`` at
-        the return), which is all it sees of the handler. A served handler moves it the same way
-        (:meth:`delay_busy_task`)."""
+        now would preempt, or None. Such a task only waits for its end: a handler dispatched at
+        tick t and returning at r (entry latency and its cycles) moves that end by r − t
+        (``_pause`` at the dispatch, ``_resume`` at the return), which is all it sees of the
+        handler. A served handler moves it the same way (:meth:`delay_busy_task`)."""
         rtos = self.rtos
         if rtos is None or self.stack:
             return None

@@ -208,24 +208,28 @@ def serve_run(kernel, owner) -> bool:
     if barrier is not None and _doomed(streams, barrier):
         return False
     charged = {cpu: cpu.busy_ticks for cpu in busy.values()}
-    if ends:
-        done = _plan(kernel, streams, barrier, ends)
+    last = {}       # busy CPU -> (return, plan index) of its last handler served
+    if ends or len(charged) > 1:
+        done = _plan(kernel, streams, barrier, ends, last)
     else:           # every handler served returns before the barrier, so before each busy task's end
-        done = _count(kernel, streams, barrier) or _plan(kernel, streams, barrier)
+        done = _count(kernel, streams, barrier) or _plan(kernel, streams, barrier, None, last)
     if done:
         # the handlers served on a busy task's CPU moved its end by their ticks: the busy time
-        # they were charged (Route.serve, Route.charge)
-        for cpu, before in charged.items():
-            if cpu.busy_ticks != before:
-                cpu.delay_busy_task(cpu.busy_ticks - before)
+        # they were charged (Route.serve, Route.charge). Edge by edge each end is queued again at
+        # its CPU's last handler's return: ends that land on one tick keep that order
+        for cpu in sorted(charged, key=lambda c: last.get(c, (0, 0))):
+            if cpu.busy_ticks != charged[cpu]:
+                cpu.delay_busy_task(cpu.busy_ticks - charged[cpu])
     return done
 
 
 def _stranger_first(kernel, owner, busy) -> bool:
-    """True where the first queued event that no run could absorb (neither a motor's queued
-    crossing nor one of the ``busy`` tasks' ends) comes before the owner's first handler could
-    return: the barrier is no later, so the run cannot serve even that crossing, and this is
-    settled without making any other stream (:func:`_doomed` after them)."""
+    """True where the first queued event that no run could absorb comes before the owner's first
+    handler could return, settled without making any other stream (:func:`_doomed` after them).
+    Passed over: the motors' events (a crossing may join the run) and the ``busy`` tasks' ends of
+    the owner's CPUs. What is left bounds the owner's first handler: either it is the barrier
+    (or comes after it), or it is the busy end of another module whose stream joins the run,
+    before which :func:`_before_ends` wants every other CPU's handlers returned."""
     skip = set()
     while True:
         head = kernel.first_queued(skip)
@@ -318,7 +322,7 @@ def _count(kernel, streams, barrier) -> bool:
     return True
 
 
-def _plan(kernel, streams, barrier, ends=None) -> bool:
+def _plan(kernel, streams, barrier, ends=None, last=None) -> bool:
     """The run crossing by crossing, in time order, as long as each one is served (module
     docstring). Of the planned crossings, the longest prefix in time order is committed whose
     handlers all return before the first crossing left out: edge by edge, that crossing's events
@@ -328,7 +332,8 @@ def _plan(kernel, streams, barrier, ends=None) -> bool:
     task's code runs there, so it bounds the run as a barrier does, except that each handler
     served on that CPU moves it by the handler's ticks (dispatch to return): a crossing is served
     there if its request is dispatched by then (dispatch comes before a task's end at one tick),
-    and every other handler must return before it."""
+    and every other handler must return before it. ``last`` (a dict, if given) gets, per CPU, the
+    (return, plan index) of its last handler committed."""
     horizon = kernel.horizon
     plan = []
     t_stop = None
@@ -368,8 +373,10 @@ def _plan(kernel, streams, barrier, ends=None) -> bool:
             best = j + 1
     if best == 0:
         return False
-    for item in plan[:best]:
+    for j, item in enumerate(plan[:best]):
         item.stream.commit(item)
+        if last is not None:
+            last[item.route.cpu] = (item.ret, j)
     for s in streams:
         s.finish()
     return True
