@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import pytest
 from vcd.reader import TokenKind, tokenize
 
 from mcusim.cli import main
@@ -154,3 +155,19 @@ def test_every_subcommand_help_has_examples(capsys):
     for cmd in ("boards", "run", "trace", "bench"):
         assert main([cmd, "--help"]) == 0
         assert "examples:" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("expect, rc", [
+    ('summary = "firmware.faults"\ncontains = "modules_missing"\n', 0),    # the fault is the point
+    ('summary = "firmware.faults"\nequals = []\n', 1),                     # no fault wanted: FAIL
+    ('summary = "firmware.modules_missing"\ncontains = "0x0a"\n', 1),     # faults not checked
+])
+def test_a_scenario_that_checks_the_firmware_faults_decides_the_exit_status(tmp_path, capsys, expect, rc):
+    """Was exit 1 whatever the scenario said: a fault-injection scenario expecting the fault could
+    not pass. A scenario checking ``firmware.faults`` now decides; one that does not leaves a
+    reported fault failing the run as before."""
+    sc = tmp_path / "ce.toml"
+    sc.write_text('[scenario]\nduration = "300ms"\n[[expect]]\n' + expect)
+    assert main(["run", "ciaa-edu", "--scenario", str(sc)]) == rc
+    err = capsys.readouterr().err
+    assert "the firmware reported: modules_missing" in err

@@ -262,3 +262,23 @@ def test_example_passes_its_expectations(name, duration):
         f = sc.report["follow"]
         assert f["samples"] == 951 and 0 < f["max_abs_error_rad"] <= 0.5
         assert sc.report_entries()["scenario"]["report"]["follow"] == f
+
+
+@pytest.mark.parametrize("attr", ["glitch", "apply_load_torque", "set_state"])
+def test_an_expectation_only_reads_a_method_that_acts_or_needs_arguments_is_refused(tmp_path, attr):
+    """Was a TypeError from inside the run (a method needing arguments) or, for ``glitch``, an
+    encoder glitch injected by reading it: an expectation reads values only. The refusal names
+    the line of ``attr`` and what can be read."""
+    part = "encoder1" if attr == "glitch" else "motor1"
+    p = write(tmp_path, HEAD + f'[[expect]]\ntime = "10ms"\npart = "{part}"\nattr = "{attr}"\nmin = 0\n', "m.toml")
+    msg = error_of(run_scenario, p)
+    assert "m.toml:7:" in msg and f"{attr!r} is a method, not a value to read" in msg, msg
+    assert "position" in msg or "output_angle" in msg, msg
+
+
+def test_a_part_that_declares_a_method_as_a_value_is_read_through_it(tmp_path):
+    """The battery's ``voltage()`` is a value (``READERS``), read at the expectation's time."""
+    p = write(tmp_path, '[scenario]\nboard = "elementall"\nduration = "3ms"\n'
+              '[[expect]]\ntime = "2ms"\npart = "battery"\nattr = "voltage"\nmin = 11.0\nmax = 14.0\n', "v.toml")
+    _, sc = run_scenario(p)
+    assert not sc.failed and 11.0 < sc.results[0].got < 14.0, sc.format_results()

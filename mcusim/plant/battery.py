@@ -107,6 +107,8 @@ class LeadAcidBank:
     ``set_soc(soc)`` sets the state of charge now (an injected sag, for scenarios).
     """
 
+    READERS = ("voltage",)     # methods a scenario expectation may read as values
+
     def __init__(self, kernel, name: str = "battery", *, count=2, soc=1.0, capacity_ah=9.0,
                  r0=0.020, r1=0.015, tau1=60.0, ocv_empty=11.65, ocv_full=12.75, peukert_k=1.15,
                  wiring_r=0.010, step="1ms", loads=None):
@@ -292,6 +294,8 @@ class VoltageDivider:
 
     The source impedance it presents (r_top ‖ r_bottom) and any series resistor on the board (the
     EDU-CIAA's 1.2 kΩ on the ADC input) belong to the ADC's sampling model, not to the ratio."""
+
+    READERS = ("voltage",)
 
     def __init__(self, source_fn, r_top: float, r_bottom: float):
         r_top = _num("r_top", r_top, "divider", positive=True)

@@ -8,6 +8,7 @@ between two motors every ``REPORT_SAMPLE`` at ``PRIO_OBSERVE``. The functions ge
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 from fractions import Fraction
@@ -159,11 +160,28 @@ def _read_part(sc, sim, e, line, where):
     if attr.startswith("_") or not hasattr(part, attr):
         raise sc._err(sc._line("expect", e.index, "attr"),
                       f"{where}: part {name!r} has no attribute {attr!r}")
+    readers = getattr(part, "READERS", ())
+    if callable(inspect.getattr_static(part, attr)) and attr not in readers:
+        # a method acts on the simulation (glitch, apply_load_torque) or needs arguments: an
+        # expectation only reads, and calls only the methods a part declares as values
+        raise sc._err(sc._line("expect", e.index, "attr"),
+                      f"{where}: part {name!r}: {attr!r} is a method, not a value to read "
+                      f"(values: {', '.join(_values_of(part))})")
 
     def read():
         v = getattr(part, attr)
-        return v() if callable(v) else v
+        return v() if attr in readers else v
     return read
+
+
+def _values_of(part) -> list[str]:
+    """The names an expectation can read from ``part``: its properties, its plain public number
+    and flag attributes, and the methods it declares as values (``READERS``)."""
+    names = set(getattr(part, "READERS", ()))
+    for cls in type(part).__mro__:
+        names.update(k for k, v in vars(cls).items() if isinstance(v, property) and not k.startswith("_"))
+    names.update(k for k, v in vars(part).items() if not k.startswith("_") and isinstance(v, (bool, int, float)))
+    return sorted(names)
 
 
 def _read_summary(sc, sim, e, line, where):
