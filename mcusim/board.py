@@ -218,12 +218,13 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
                              f"(parts: {', '.join(sorted(str(d) for d in declared if d))})", part, None,
                              next(iter(terms), None), where)
 
-    def ref(name, who, key):
-        if name in parts:
-            return parts[name]
-        found = lookup(name) if lookup is not None else None
+    def ref(name, who, key, allowed=()):
+        found = parts[name] if name in parts else lookup(name) if lookup is not None else None
         if found is None:
             raise _PartError(f"part {who}: no part {name!r} declared before it", who, key, None, where)
+        if allowed and not isinstance(found, tuple(kinds.lookup("part", k, where).load() for k in allowed)):
+            raise _PartError(f"part {who}: {key} = {name!r} is not a {' or '.join(allowed)} part",
+                             who, key, None, where)
         return found
 
     for spec in specs:
@@ -235,7 +236,9 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
         for key in kind.refs:
             if key in spec:
                 v = spec[key]
-                args[key] = [ref(x, name, key) for x in v] if isinstance(v, list) else ref(v, name, key)
+                allowed = kind.ref_kinds.get(key, ())
+                args[key] = ([ref(x, name, key, allowed) for x in v] if isinstance(v, list)
+                             else ref(v, name, key, allowed))
         required, optional = kind.terminals
         unknown = set(wiring.get(name, {})) - set(required + optional)
         if unknown:

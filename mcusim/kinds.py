@@ -38,6 +38,7 @@ class Kind:
     doc: str = ""
     terminals: tuple = ((), ())          # parts: (required, optional) digital terminals
     refs: tuple = ()                     # parts: parameters naming other parts
+    ref_kinds: dict = field(default_factory=dict)   # parts: ref -> the part kinds it may name
     needs: tuple = ()                    # peripherals: "base", "clock"
     origin: str = "mcusim"
     open_params: bool = False            # a registered class without PARAMS: names not checked
@@ -228,6 +229,7 @@ PARTS = {k.name: k for k in (
         V_th=_num(1.8, above=0, max=5.5, unit="V", doc="EN threshold, below V_pullup"),
         drive_en=Param(False, doc="the bridge drives EN low on over-current"))},
         "one full bridge of an ST L6206", terminals=(("IN1", "IN2", "EN"), ()), refs=("motor",),
+        ref_kinds={"motor": ("dcmotor",)},
         rules=(lambda v: None if v["V_th"] < v["V_pullup"] else
                f"V_th = {v['V_th']:g} V must be below V_pullup = {v['V_pullup']:g} V",)),
     Kind("part", "bts7960", "mcusim.plant.bts7960:Bts7960Bridge", {**_BRIDGE_COMMON, **_P(
@@ -244,11 +246,12 @@ PARTS = {k.name: k for k in (
         Vcc=_num(5.0, above=0, max=5.5, unit="V", doc="logic supply (IS clamp)"),
         cl_action=Param("other", choices=("other", "off"), doc="current limit: switch to the other side or off"))},
         "IBT-2: two Infineon BTS7960 half bridges", terminals=(("RPWM", "LPWM"), ("R_EN", "L_EN")),
-        refs=("motor",)),
+        refs=("motor",), ref_kinds={"motor": ("dcmotor",)}),
     Kind("part", "encoder", "mcusim.plant.encoder:QuadratureEncoder", _P(
         counts_per_rev=Param(64, min=1, max=100_000, unit="counts per motor turn",
                              doc="quadrature counts (4 per line of the disc)")),
-        "quadrature encoder on the motor shaft", terminals=(("A", "B"), ()), refs=("motor",)),
+        "quadrature encoder on the motor shaft", terminals=(("A", "B"), ()), refs=("motor",),
+        ref_kinds={"motor": ("dcmotor",)}),
     Kind("part", "battery", "mcusim.plant.parts:BatteryPart", _P(
         count=Param(2, min=1, max=8, doc="12 V batteries in parallel"),
         soc=_num(1.0, min=0, max=1.0, doc="state of charge"),
@@ -258,12 +261,12 @@ PARTS = {k.name: k for k in (
         ocv_empty=_num(11.65, above=0, max=100.0, unit="V"), ocv_full=_num(12.75, above=0, max=100.0, unit="V"),
         peukert_k=_num(1.15, min=1.0, max=2.0), wiring_r=_num(0.010, min=0, max=1.0, **_OHM),
         step=DurationParam("1ms", min=1e-6, max=1.0, doc="update step")),
-        "bank of 12 V sealed lead-acid batteries", refs=("loads",),
+        "bank of 12 V sealed lead-acid batteries", refs=("loads",), ref_kinds={"loads": ("bts7960",)},
         rules=(lambda v: None if v["ocv_full"] > v["ocv_empty"] else
                f"ocv_full = {v['ocv_full']:g} V must be above ocv_empty = {v['ocv_empty']:g} V",)),
     Kind("part", "divider", "mcusim.plant.parts:DividerPart", _P(
         r_top=_num(33e3, above=0, max=1e9, **_OHM), r_bottom=_num(6.8e3, above=0, max=1e9, **_OHM)),
-        "resistor divider from a part's voltage", refs=("source",)),
+        "resistor divider from a part's voltage", refs=("source",), ref_kinds={"source": ("battery",)}),
     Kind("part", "rover-body", "mcusim.plant.parts:RoverBodyPart", _P(
         sides=Param(("L", "R"), length=range(2, 9), items=Param("L", choices=("L", "R"))),
         directions=Param((1, 1), length=range(2, 9), items=Param(1, choices=(1, -1))),
@@ -275,7 +278,8 @@ PARTS = {k.name: k for k in (
         yaw_rate_eps=_num(0.05, above=0, max=10.0, unit="rad/s"), speed_eps=_num(0.01, above=0, max=10.0, unit="m/s"),
         x=_num(0.0, min=-1e6, max=1e6, unit="m"), y=_num(0.0, min=-1e6, max=1e6, unit="m"),
         yaw=_num(0.0, min=-1e3, max=1e3, unit="rad")),
-        "skid-steer or differential rover body on its wheel motors", refs=("motors",)),
+        "skid-steer or differential rover body on its wheel motors", refs=("motors",),
+        ref_kinds={"motors": ("dcmotor",)}),
     Kind("part", "estop", "mcusim.plant.parts:EStopPart", {}, "E-stop button cutting the motor-enable line",
          terminals=(("ENABLE_IN",), ("ENABLE_OUT", "SENSE"))),
 )}
@@ -383,7 +387,9 @@ def reference(group: str) -> str:
             if req or opt:
                 extra.append("terminals " + ", ".join([f"`{t}`" for t in req] + [f"`{t}` (optional)" for t in opt]))
             if kind.refs:
-                extra.append("names other parts with " + ", ".join(f"`{r}`" for r in kind.refs))
+                extra.append("names other parts with " + ", ".join(
+                    f"`{r}`" + (f" ({' or '.join(kind.ref_kinds[r])})" if r in kind.ref_kinds else "")
+                    for r in kind.refs))
         if extra:
             text = "; ".join(extra)
             out[-1] += " " + text[:1].upper() + text[1:] + "."

@@ -38,7 +38,16 @@ parameter of the main board's firmware; any other key is an input of the main fi
 
 from __future__ import annotations
 
-from .board import _firmware_inputs, board_clocks, build, build_parts, read_profile, split_overrides
+from .board import (
+    _firmware_inputs,
+    _located,
+    _PartError,
+    board_clocks,
+    build,
+    build_parts,
+    read_profile,
+    split_overrides,
+)
 from .errors import ConfigError, with_member
 from .kernel import Kernel
 from .signals import Net
@@ -148,7 +157,12 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     for source, net in link_nets.items():
         part, _, term = source.partition(".")
         wiring.setdefault(part, {})[term.upper()] = net
-    sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
+    try:
+        sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
+    except _PartError as exc:      # at the line of the part's key, as a board's parts are named
+        msg, name, key, _, _ = exc.args
+        index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
+        raise _located(profile, where, msg, "part", index, *((key,) if key else ())) from None
 
     for target, source in profile.get("analog", {}).items():
         member, _, net_name = target.partition(".")

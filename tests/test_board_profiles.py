@@ -202,3 +202,32 @@ def test_a_registered_firmware_that_is_no_firmware_is_one_line(tmp_path, capsys,
         p.write_text(shipped_text("nucleo-f746").replace('kind = "controlmotor"', f'kind = "{kind}"'))
         err = _err(capsys, ["run", str(p), "--duration", "1ms", "--set", "motor1.R=2"])
         assert needle in err, err
+
+
+def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp_path, capsys):
+    """Was "'L6206Bridge' object has no attribute 'angle'" without a line: an encoder's motor
+    named a bridge. Each kind's references say which kinds they take."""
+    text = shipped_text("nucleo-f746")
+    at = text.index('name = "encoder1"')
+    old = 'motor = "motor1"'
+    j = text.index(old, at)
+    p = tmp_path / "b.toml"
+    p.write_text(text[:j] + 'motor = "bridgeA"' + text[j + len(old):])
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:j].count("\n") + 1
+    assert f"b.toml:{line}: part encoder1: motor = 'bridgeA' is not a dcmotor part" in err, err
+
+
+@pytest.mark.parametrize("old, new, needle", [
+    ('loads = ["mcm1.ibt2"', 'loads = ["mcm1.motor"', "part battery: loads = 'mcm1.motor' is not a bts7960 part"),
+    ('motors = ["mcm1.motor"', 'motors = ["mcm1.ibt2"', "part body: motors = 'mcm1.ibt2' is not a dcmotor part"),
+])
+def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
+    """Were "load 'motor' is not a bridge" and "'ibt2' is not a wheel motor" without file:line."""
+    text = shipped_text("elementall")
+    assert old in text
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace(old, new, 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:text.index(old)].count("\n") + 1
+    assert f"s.toml:{line}: {needle}" in err, err
