@@ -13,6 +13,12 @@ from fractions import Fraction
 from .errors import McusimError
 
 
+def _level(level, what: str) -> int:
+    """A digital level given from Python: 0 or 1 (False, True), else one clear error."""
+    if level in (0, 1) and not isinstance(level, float):
+        return int(level)
+    raise McusimError(f"{what}({level!r}): a digital level is 0 or 1")
+
 class _Carrier:
     """Listeners and steady waveforms, shared by :class:`Net` and :class:`Port`.
 
@@ -162,8 +168,8 @@ class Net(_Carrier):
         self._resolve()
 
     def drive(self, level: int) -> None:
-        """External stimulus: force the level, taking the net away from every driver."""
-        self._forced = 1 if level else 0
+        """External stimulus: force the level (0 or 1), taking the net away from every driver."""
+        self._forced = _level(level, "drive")
         self._resolve()
 
     def release(self) -> None:

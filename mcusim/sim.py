@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time as _wall
+from collections.abc import Mapping
 
 from .board import build, parse_value, read_profile, split_overrides
 from .engine import DEFAULT_ENGINE, check_engine
@@ -240,6 +241,9 @@ def load(board: str, firmware=True, overrides: dict | None = None, **kw) -> Simu
     ``firmware``: True (the profile's firmware), False (none) or the path of an ELF image to run
     on the board's Cortex-M core (``docs/firmware.md``).
     """
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(f"overrides = {overrides!r}: expected a mapping of --set keys to values, "
+                          f'e.g. {{"motor1.R": 2.0}}')
     return Simulation(board, firmware=firmware, overrides=overrides, **kw)
 
 

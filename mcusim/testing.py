@@ -22,6 +22,7 @@ import inspect
 import textwrap
 
 from .errors import McusimError
+from .signals import _level
 
 __all__ = ["SimTimeout", "describe_condition", "run_for", "wait_for_pin", "wait_until"]
 
@@ -160,7 +161,7 @@ def wait_for_pin(sim, pin, level, timeout="1s", *, message: str | None = None) -
     """
     __tracebackhide__ = True
     net = _net(sim, pin)
-    want = 1 if level else 0
+    want = _level(level, "wait_for_pin")
     start = sim.kernel.now
     end = start + _ticks(sim, timeout)
     hit = []

@@ -35,3 +35,23 @@ def test_until_tick_now_or_later_ends_exactly_there(sim, ahead):
     end = sim.now + ahead
     sim.run(until_tick=float(end) if ahead % 2 else end)
     assert sim.now == end
+
+
+@pytest.mark.parametrize("level", [2, -1, 0.5, "1", None])
+def test_a_pin_is_driven_to_0_or_1_only(sim, level):
+    """Was taken silently as level 1 (2, -1) or 0 (None): a digital level is 0 or 1."""
+    with pytest.raises(McusimError, match="a digital level is 0 or 1"):
+        sim.pin("PD3").drive(level)
+
+
+def test_wait_for_pin_takes_a_level_of_0_or_1(sim):
+    """Was a wait until the timeout for a level a pin can never have."""
+    from mcusim.testing import wait_for_pin
+    with pytest.raises(McusimError, match="a digital level is 0 or 1"):
+        wait_for_pin(sim, "PB1", 2)
+
+
+def test_overrides_are_a_mapping_not_a_list_of_set_strings():
+    from mcusim.errors import ConfigError
+    with pytest.raises(ConfigError, match="expected a mapping of --set keys"):
+        mcusim.load("nucleo-f746", overrides=["motor1.R=2"])
