@@ -26,7 +26,8 @@ column names:
     ``battery.measured_v`` (the controller's filtered battery reading; empty before the first),
     ``cmd_vel.linear_m_s``, ``cmd_vel.angular_rad_s`` (the command the controller holds).
 
-Empty cells are values not available yet. ``keep=True`` also keeps every row in memory
+The rows are on that grid, and where the run ends between two grid points one more row holds the
+state at its end (``close(now)``). Empty cells are values not available yet. ``keep=True`` also keeps every row in memory
 (``rows``, ``column(name)``), which :func:`mcusim.plot.plot_run` draws from; ``path=None`` with
 ``keep=True`` records in memory only. The trace follows the ``flush(now)`` / ``close(now)``
 protocol of :class:`~mcusim.trace.VcdTrace`, so ``Simulation._traces`` can hold it.
@@ -190,6 +191,7 @@ class CsvTrace:
             self._csv = csv.writer(self._file, lineterminator="\n")
             self._csv.writerow(self.columns)
         self._closed = False
+        self._last = None                                  # the tick of the last row written
         self._k = -(-self.kernel.now // self.period)      # first grid point at or after now
         self._ev = self.kernel.at(self._k * self.period, self._sample, prio=PRIO_OBSERVE)
 
@@ -197,14 +199,18 @@ class CsvTrace:
         if self._closed:
             return
         k = self._k
-        values = [g() for g in self._getters]
-        if self._file is not None:
-            self._csv.writerow([_exact_decimal(k * self.sample_s)] + [_fmt(v) for v in values])
-        if self.keep:
-            self.rows.append([float(k * self.sample_s)] + [None if v is None else float(v) for v in values])
-            self.ticks.append(self.kernel.now)
+        self._row(k * self.sample_s)
         self._k = k + 1
         self._ev = self.kernel.at(self._k * self.period, self._sample, prio=PRIO_OBSERVE)
+
+    def _row(self, t: Fraction) -> None:
+        values = [g() for g in self._getters]
+        if self._file is not None:
+            self._csv.writerow([_exact_decimal(t)] + [_fmt(v) for v in values])
+        if self.keep:
+            self.rows.append([float(t)] + [None if v is None else float(v) for v in values])
+            self.ticks.append(self.kernel.now)
+        self._last = self.kernel.now
 
     # --- in-memory access ---------------------------------------------------------------------------
     def column(self, name: str) -> list:
@@ -227,6 +233,10 @@ class CsvTrace:
     def close(self, now: int | None = None) -> None:
         if self._closed:
             return
+        if now is not None and self._last is not None and now > self._last:
+            # the run ended between grid points: one last row where it ended, so that the file
+            # holds the end state (a sample that does not divide the duration, or is longer)
+            self._row(Fraction(now, self.base_hz))
         self._closed = True
         if self._ev is not None:
             self._ev.cancel()

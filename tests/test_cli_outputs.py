@@ -72,6 +72,20 @@ def test_csv_has_units_in_the_header_and_rows_on_the_grid(tmp_path, capsys):
     assert [row.split(",")[0] for row in lines[1:]] == ["0", "0.002", "0.004", "0.006", "0.008", "0.01"]
 
 
+@pytest.mark.parametrize("sample, times", [
+    ("3ms", ["0", "0.003", "0.006", "0.009", "0.01"]),
+    ("1s", ["0", "0.01"]),
+])
+def test_a_run_ending_between_grid_points_gets_a_last_row_at_its_end(tmp_path, capsys, sample, times):
+    """Was a file ending at 0.009 s (or at 0 for a sample longer than the run), silently: the end
+    state of the run was missing."""
+    csv = tmp_path / "run.csv"
+    assert main(["run", "nucleo-f746", "--duration", "10ms", "--set", "/motor1/set_pos=0.1",
+                 "--csv", str(csv), "--sample", sample, "-q"]) == 0
+    lines = csv.read_text().splitlines()
+    assert [row.split(",")[0] for row in lines[1:]] == times
+
+
 def test_plot_writes_a_png(tmp_path, capsys):
     png = tmp_path / "run.png"
     assert main(["run", "pro-mini", "--duration", "50ms", "--plot", str(png), "-q"]) == 0
