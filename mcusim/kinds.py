@@ -75,6 +75,16 @@ _IRQ = Param(0, min=0, max=495, doc="interrupt number (NVIC IRQ or AVR vector)")
 _VEC = Param(0, min=1, max=63, doc="AVR interrupt vector")
 
 
+def _irq(default: int, what: str) -> Param:
+    """An interrupt number a peripheral defaults to when the profile gives none (the class's own
+    default: the chip's line for that peripheral)."""
+    return Param(default, min=0, max=495, doc=f"NVIC interrupt line ({what})")
+
+
+def _vec(default: int, what: str) -> Param:
+    return Param(default, min=1, max=63, doc=f"AVR interrupt vector ({what})")
+
+
 class _Table(Param):
     """A table of named integers (``irqs = { update = 25, cc = 27 }``) or of analog-net names
     (``inputs = { 0 = "A0" }``)."""
@@ -138,16 +148,17 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "stm32-gpio", "mcusim.periph.stm32.gpio:Gpio", _P(port=_PORT),
          "STM32 GPIO port (16 pins P<port>0..15)", needs=("base",)),
     Kind("peripheral", "lpc43xx-adc", "mcusim.periph.lpc43xx.adc:Adc", _P(
-        irq=_IRQ, inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
+        irq=_irq(17, "ADC0"), inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
         vref=_num(3.3, min=2.7, max=3.6, unit="V", doc="VDDA"),
         strict=Param(False, doc="specification limits are errors")),
         "LPC4337 10-bit ADC", needs=("base", "clock")),
-    Kind("peripheral", "lpc43xx-i2c", "mcusim.periph.lpc43xx.i2c:I2c", _P(irq=_IRQ, bus=_BUSNAME),
+    Kind("peripheral", "lpc43xx-i2c", "mcusim.periph.lpc43xx.i2c:I2c", _P(irq=_irq(18, "I2C0"), bus=_BUSNAME),
          "LPC4337 I2C master", needs=("base", "clock")),
     Kind("peripheral", "lpc43xx-gpio", "mcusim.periph.lpc43xx.gpio:Gpio", _P(
         ports=Param(8, min=1, max=8), pins_per_port=Param(32, min=1, max=32)),
         "LPC4337 GPIO port block (pins GPIO<port>_<n>)", needs=("base",)),
-    Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=_IRQ),
+    Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=Param(
+        0, min=0, max=495, required=True, doc="NVIC interrupt line: 24 USART0, 25 UART1, 26 USART2, 27 USART3")),
          "LPC4337 USART", needs=("base", "clock")),
     Kind("peripheral", "avr-cpu", "mcusim.periph.avr.cpu:AvrCpuRegs", {}, "ATmega328P SREG, SP"),
     Kind("peripheral", "avr-port", "mcusim.periph.avr.port:AvrPort", _P(
@@ -164,10 +175,10 @@ PERIPHERALS = {k.name: k for k in (
         needs=("clock",)),
     Kind("peripheral", "avr-adc", "mcusim.periph.avr.adc:Adc", _P(
         inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
-        avcc=_num(5.0, min=1.8, max=5.5, unit="V"), vector=_VEC,
+        avcc=_num(5.0, min=1.8, max=5.5, unit="V"), vector=_vec(21, "ADC conversion complete"),
         aref=_num(5.0, above=0, max=5.5, unit="V", doc="external reference on AREF")),
         "ATmega328P 10-bit ADC", needs=("clock",)),
-    Kind("peripheral", "avr-twi", "mcusim.periph.avr.twi:Twi", _P(bus=_BUSNAME, vector=_VEC),
+    Kind("peripheral", "avr-twi", "mcusim.periph.avr.twi:Twi", _P(bus=_BUSNAME, vector=_vec(24, "TWI")),
          "ATmega328P TWI (I2C slave)", needs=("clock",)),
 )}
 

@@ -89,8 +89,9 @@ class Param:
 
     def __init__(self, default, *, min=None, max=None, above=None, below=None, choices=None,
                  items: Param | None = None, length=None, unit: str = "", doc: str = "", kind=None,
-                 unique: str | None = None):
+                 unique: str | None = None, required: bool = False):
         self.default = default
+        self.required = required   # a kind's parameter the profile must give (no default fits)
         self.kind = kind or (float if isinstance(default, float) else type(default))
         self.min, self.max, self.above, self.below = min, max, above, below
         self.choices = tuple(choices) if choices is not None else None
@@ -150,7 +151,7 @@ class Param:
         default = (fmt_number(self.default) if isinstance(self.default, (int, float)) else
                    "none" if self.default == "" else ", ".join(map(fmt_number, self.default))
                    if isinstance(self.default, (tuple, list)) else self.default)
-        parts = [kind, f"default {default}"] + ([rng] if rng else [])
+        parts = [kind, "required" if self.required else f"default {default}"] + ([rng] if rng else [])
         return ", ".join(parts) + (f": {self.doc}" if self.doc else "")
 
 

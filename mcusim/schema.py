@@ -162,6 +162,9 @@ def check_params(prof, kind, spec: dict, skip, where, table, index) -> dict:
             out[k] = kind.params[k].check(v, k)
         except ConfigError as exc:
             raise prof.err(f"{where}: {exc}", table, index, k) from None
+    for k, p in kind.params.items():
+        if getattr(p, "required", False) and k not in spec:
+            raise prof.err(f"{where}: {kind.name} needs {k} = ... ({p.doc})", table, index)
     return out
 
 

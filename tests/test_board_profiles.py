@@ -231,3 +231,19 @@ def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, cap
     err = _err(capsys, ["run", str(p), "--duration", "1ms"])
     line = text[:text.index(old)].count("\n") + 1
     assert f"s.toml:{line}: {needle}" in err, err
+
+
+def test_a_usart_without_its_interrupt_line_names_the_table_and_the_lines_it_may_take(tmp_path, capsys):
+    """Was "Usart.__init__() missing 1 required positional argument: 'irq'" without a line; the
+    documented "default 0" of every interrupt number was not what a missing one did (the ADC
+    and the TWI take the chip's own line, the USART none)."""
+    text = shipped_text("ciaa-edu")
+    at = text.index('kind = "lpc43xx-usart"')
+    j = text.index("irq = ", at)
+    p = tmp_path / "c.toml"
+    p.write_text(text[:j] + text[text.index("\n", j) + 1:])
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    assert "lpc43xx-usart needs irq = ... (NVIC interrupt line: 24 USART0" in err and "c.toml:" in err, err
+    from mcusim import kinds
+    ref = kinds.reference("peripheral")
+    assert "default 0" not in "\n".join(line for line in ref.splitlines() if line.startswith(("| `irq`", "| `vector`")))
