@@ -148,8 +148,17 @@ def _common_arguments(r, default_duration: str, what: str) -> None:
                         "edge its own event); both give the same results")
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("mcusim")
+    except PackageNotFoundError:       # run from a source tree that is not installed
+        return "(not installed)"
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="mcusim", description="Tick-accurate simulator of MCU peripherals, firmware and plants.")
+    p.add_argument("--version", action="version", version=f"mcusim {_version()}")
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=_Parser, metavar="{boards,run,trace,bench}")
     bo = sub.add_parser("boards", help="list the board and system profiles", epilog=EXAMPLES_BOARDS,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -421,6 +430,7 @@ def cmd_run(args) -> int:
                 exc.sim_time = sim.time_s
             raise
         sim.close()
+        outs.commit_streamed()      # the run completed: a failure to write what follows is no reason to doubt them
         s = sim.summary()
         if scenario is not None:
             s.update(scenario.report_entries())
@@ -428,13 +438,15 @@ def cmd_run(args) -> int:
             s["link"] = {"rx_dropped": endpoint.rx_dropped, "tx_dropped": endpoint.dropped}
         if vcd is not None and "gtkw" in files:
             from .trace import write_gtkw
-            write_gtkw(vcd, files["gtkw"].target, dumpfile=args.vcd, savefile=args.vcd and
-                       os.path.splitext(args.vcd)[0] + ".gtkw")
+            with _writing(files["gtkw"]):
+                write_gtkw(vcd, files["gtkw"].target, dumpfile=args.vcd, savefile=args.vcd and
+                           os.path.splitext(args.vcd)[0] + ".gtkw")
         if args.plot:
             from .plot import plot_run
-            plot_run(csv, files["plot"].target, title=s["board"])
+            with _writing(files["plot"]):
+                plot_run(csv, files["plot"].target, title=s["board"])
         if args.summary:
-            with open(files["summary"].target, "w") as f:
+            with _writing(files["summary"]), open(files["summary"].target, "w") as f:
                 json.dump(s, f, indent=2)
         outs.commit()
     except BaseException:
@@ -550,6 +562,16 @@ def _short(exc, limit: int = 600) -> str:
     """An error message on one line of reasonable length (a 5000-character key is cut)."""
     text = " ".join(str(exc).split("\n"))
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+@contextlib.contextmanager
+def _writing(out):
+    """A file written after the run: an OSError names its option and path (not a temporary)."""
+    try:
+        yield
+    except OSError as exc:
+        exc.filename = f"{out.option} {out.path}"
+        raise
 
 
 def _os_error(exc: OSError, args) -> str:

@@ -143,6 +143,16 @@ class Outputs:
         for out in self.items:
             out.commit()
 
+    def commit_streamed(self) -> None:
+        """The run completed: the files streamed during it are whole, whatever happens to the
+        ones written after it."""
+        for out in self.items:
+            if out.streamed:
+                out.commit()
+
+    def get(self, option: str) -> Output | None:
+        return next((out for out in self.items if out.option == option), None)
+
     def abandon(self) -> list[str]:
         """Drop or mark what is not complete; returns the partial files left (``.part``)."""
         return [p for p in (out.abandon() for out in self.items) if p]

@@ -171,3 +171,9 @@ def test_a_scenario_that_checks_the_firmware_faults_decides_the_exit_status(tmp_
     assert main(["run", "ciaa-edu", "--scenario", str(sc)]) == rc
     err = capsys.readouterr().err
     assert "the firmware reported: modules_missing" in err
+
+
+def test_version_prints_the_installed_version(capsys):
+    from importlib.metadata import version
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"mcusim {version('mcusim')}"

@@ -232,3 +232,16 @@ def test_the_thesis_arr_of_65536_counts_is_refused_as_the_16_bit_timer_cannot_ho
                           "--set", "firmware.counts_per_turn=65536"], "16-bit encoder timers cannot hold")
     for sets in (["firmware.counts_per_turn=65536"], ["firmware.variant=thesis", "firmware.counts_per_turn=65535"]):
         mcusim.load("nucleo-f746", overrides=dict(s.split("=") for s in sets)).run(seconds="1ms")
+
+
+def test_a_summary_that_cannot_be_written_after_the_run_spares_the_streamed_outputs(tmp_path, capsys):
+    """Was "the run did not complete: partial output left in ok.csv.part" and "cannot write --csv
+    ok.csv or --summary /dev/full": the run had completed and the CSV was whole. Now the CSV
+    gets its name and the message names the summary only."""
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    csv = tmp_path / "ok.csv"
+    err = _usage_error(capsys, ["run", "nucleo-f746", "--duration", "3ms", "--csv", str(csv), "--summary",
+                                "/dev/full", "-q"], "--summary /dev/full: No space left on device")
+    assert "--csv" not in err and "did not complete" not in err, err
+    assert csv.read_text().splitlines()[-1].startswith("0.003,") and not (tmp_path / "ok.csv.part").exists()
