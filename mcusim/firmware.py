@@ -25,6 +25,9 @@ less urgent one instead of taking over its stacking; tail-chaining costs a full 
 
 from __future__ import annotations
 
+import atexit
+import weakref
+
 from .errors import McusimError
 from .kernel import PRIO_CPU, PRIO_DISPATCH
 
@@ -104,12 +107,33 @@ class Task(Context):
     def __init__(self, name, coro, priority):
         super().__init__(name)
         self.coro, self.priority = coro, priority
+        if hasattr(coro, "close"):
+            _unstarted.add(coro)
         self.state = "ready"  # ready | blocked | done
         self.wake_tick = None
         self.started = False
         self.result = None     # sent into the coroutine when it resumes
         self.deadline = None   # RTOS tick at which a wait_signal(timeout=) gives up
         self.wait_token = None
+
+    def __del__(self):
+        # a simulation dropped before its tasks ran: end the coroutine quietly (Python warns
+        # about a coroutine that was never awaited)
+        coro = getattr(self, "coro", None)
+        if coro is not None and not self.started:
+            coro.close()
+
+
+# the task coroutines not started yet: closed at exit, where a simulation loaded and never run
+# would otherwise leave "coroutine ... was never awaited" (objects in a cycle are finalized in no
+# set order, so Task.__del__ alone does not always come first)
+_unstarted = weakref.WeakSet()
+
+
+@atexit.register
+def _close_unstarted() -> None:
+    for coro in list(_unstarted):
+        coro.close()
 
 
 class Cpu:
@@ -453,6 +477,7 @@ class Rtos:
 
     def _start(self, task: Task):
         task.started = True
+        _unstarted.discard(task.coro)
         self.kernel.after(0, self._step, task, prio=PRIO_CPU)
 
     def _step(self, task: Task) -> None:

@@ -55,3 +55,13 @@ def test_overrides_are_a_mapping_not_a_list_of_set_strings():
     from mcusim.errors import ConfigError
     with pytest.raises(ConfigError, match="expected a mapping of --set keys"):
         mcusim.load("nucleo-f746", overrides=["motor1.R=2"])
+
+
+def test_a_simulation_dropped_before_it_ran_leaves_no_never_awaited_warning():
+    """Was "RuntimeWarning: coroutine 'OpenRoverMcm.main' was never awaited" at exit for every
+    simulation loaded and not run (the test suite ended with one)."""
+    import subprocess
+    import sys
+    code = "import mcusim\nmcusim.load('elementall')\ns = mcusim.load('pro-mini')\ndel s\n"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr
