@@ -601,7 +601,12 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status (also
     for --help, 0, and for a usage error found by the argument parser, 2)."""
     try:
-        args = _parser().parse_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
+        parser = _parser()
+        args, extra = parser.parse_known_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
+        if extra:       # name the command whose --help lists what it takes
+            print(f"mcusim: error: unrecognized arguments: {' '.join(extra)} (see mcusim {args.cmd} --help)",
+                  file=sys.stderr)
+            return 2
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
     import warnings

@@ -177,3 +177,8 @@ def test_version_prints_the_installed_version(capsys):
     from importlib.metadata import version
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"mcusim {version('mcusim')}"
+
+
+def test_an_unknown_option_points_at_the_help_of_its_command(capsys):
+    assert main(["bench", "nucleo-f746", "--foo"]) == 2
+    assert capsys.readouterr().err == "mcusim: error: unrecognized arguments: --foo (see mcusim bench --help)\n"
