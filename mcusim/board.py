@@ -218,10 +218,18 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
                              f"(parts: {', '.join(sorted(str(d) for d in declared if d))})", part, None,
                              next(iter(terms), None), where)
 
+    order = [s.get("name") for s in specs]
+
     def ref(name, who, key, allowed=()):
         found = parts[name] if name in parts else lookup(name) if lookup is not None else None
         if found is None:
-            raise _PartError(f"part {who}: no part {name!r} declared before it", who, key, None, where)
+            later = name in order and order.index(name) > order.index(who)
+            if later and allowed and specs[order.index(name)].get("kind") not in allowed:
+                raise _PartError(f"part {who}: {key} = {name!r} is not a {' or '.join(allowed)} part",
+                                 who, key, None, where)
+            raise _PartError(f"part {who}: {key} = {name!r} is declared after it; parts are built in "
+                             f"order, so declare {name} first" if later else
+                             f"part {who}: no part {name!r} declared before it", who, key, None, where)
         if allowed and not isinstance(found, tuple(kinds.lookup("part", k, where).load() for k in allowed)):
             raise _PartError(f"part {who}: {key} = {name!r} is not a {' or '.join(allowed)} part",
                              who, key, None, where)
@@ -250,7 +258,7 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
             if net is None:
                 if term in optional:
                     continue
-                raise ConfigError(f"{where}: part {name}: terminal {term} is not wired in [pins]")
+                raise _PartError(f"part {name}: terminal {term} is not wired in [pins]", name, None, None, where)
             args[term.lower()] = net
         try:
             parts[name] = cls(kernel, name=name, **args, **params)

@@ -247,3 +247,25 @@ def test_a_usart_without_its_interrupt_line_names_the_table_and_the_lines_it_may
     from mcusim import kinds
     ref = kinds.reference("peripheral")
     assert "default 0" not in "\n".join(line for line in ref.splitlines() if line.startswith(("| `irq`", "| `vector`")))
+
+
+def test_a_reference_to_a_part_declared_later_says_so(tmp_path, capsys):
+    """Was "no part 'encoder1' declared before it" for a part that is declared, later."""
+    text = shipped_text("nucleo-f746")
+    old = 'motor = "motor1"'
+    p = tmp_path / "b.toml"
+    # bridgeA names encoder1 (declared after it, and not a motor): the kind is the first problem
+    p.write_text(text.replace(old, 'motor = "encoder1"', 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    assert "part bridgeA: motor = 'encoder1' is not a dcmotor part" in err, err
+
+
+def test_an_unwired_terminal_names_the_parts_line(tmp_path, capsys):
+    text = shipped_text("nucleo-f746")
+    p = tmp_path / "b.toml"
+    start = text.index('PE9 = "bridgeA.IN1"')
+    text = text[:start] + text[text.index("\n", start) + 1:]
+    p.write_text(text)
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:text.rindex("[[part]]", 0, text.index('name = "bridgeA"'))].count("\n") + 1   # its table
+    assert f"b.toml:{line}: part bridgeA: terminal IN1 is not wired in [pins]" in err, err
