@@ -193,10 +193,13 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         raise ConfigError(f"{where}: [system] main = {main!r} is not a member ({', '.join(names)})")
     member_profiles = {}
     clocks = []
-    for m in specs:
+    for i, m in enumerate(specs):
         if "board" not in m:
             raise ConfigError(f"{where}: member {m['name']}: missing board = \"...\"")
-        prof, pwhere = read_profile(m["board"])
+        try:
+            prof, pwhere = read_profile(m["board"])
+        except ConfigError as exc:      # a board the system names: at the line that names it
+            raise _located(profile, where, f"[[member]] {m['name']}: {exc}", "member", i, "board") from None
         if is_system(prof):
             raise ConfigError(f"{where}: member {m['name']}: {m['board']} is a system, not a board")
         if m.get("plant", True) is False:   # the board alone; the system provides its plant

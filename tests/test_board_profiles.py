@@ -221,9 +221,11 @@ def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp
 @pytest.mark.parametrize("old, new, needle", [
     ('loads = ["mcm1.ibt2"', 'loads = ["mcm1.motor"', "part battery: loads = 'mcm1.motor' is not a bts7960 part"),
     ('motors = ["mcm1.motor"', 'motors = ["mcm1.ibt2"', "part body: motors = 'mcm1.ibt2' is not a dcmotor part"),
+    ('board = "pro-mini"', 'board = "pro-mini2"', "[[member]] mcm1: unknown board 'pro-mini2'"),
 ])
 def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
-    """Were "load 'motor' is not a bridge" and "'ibt2' is not a wheel motor" without file:line."""
+    """Were "load 'motor' is not a bridge", "'ibt2' is not a wheel motor" and "unknown board" without
+    file:line."""
     text = shipped_text("elementall")
     assert old in text
     p = tmp_path / "s.toml"
