@@ -261,6 +261,8 @@ def _in_run_set(args, sets: dict, exc: ConfigError) -> ConfigError:
     user = dict(args.sets)
     profile = read_profile(args.board)[0]
     for key in profile.get("run", {}).get("set", {}):
+        if msg.startswith(f"--set {key}"):      # the key came from the file, not from a --set
+            msg = msg[len("--set "):]
         if key in sets and key not in user and (msg.startswith(key) or repr(key) in msg) and hasattr(profile, "err"):
             return profile.err(f"[run.set] {msg}", "run", None, "set", key)
     return exc

@@ -271,3 +271,15 @@ def test_an_unwired_terminal_names_the_parts_line(tmp_path, capsys):
     err = _err(capsys, ["run", str(p), "--duration", "1ms"])
     line = text[:text.rindex("[[part]]", 0, text.index('name = "bridgeA"'))].count("\n") + 1   # its table
     assert f"b.toml:{line}: part bridgeA: terminal IN1 is not wired in [pins]" in err, err
+
+
+def test_a_run_set_key_of_the_file_is_blamed_on_the_file_not_on_set(tmp_path, capsys):
+    """Was "--set cmd_vel.linear: no board or part 'cmd_vel'" though no --set was given: with
+    main = "mcm1" the file's [run.set] names an input the main board does not have."""
+    text = shipped_text("elementall")
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace('main = "rcm"', 'main = "mcm1"', 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:text.index('"cmd_vel.linear" = ')].count("\n") + 1
+    assert f"s.toml:{line}: [run.set] cmd_vel.linear: no board or part 'cmd_vel'" in err, err
+    assert "--set" not in err, err
