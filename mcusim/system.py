@@ -179,6 +179,23 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     return sys_parts
 
 
+def _check_link_target(profile, where, source, target, board, part, term) -> None:
+    """A [links] target names a part of the member's board and one of its kind's terminals: the
+    mistake is the system file's, at its [links] line (the board's own check would blame the
+    board's profile)."""
+    from . import kinds
+    spec = next((p for p in board.get("part", []) if p.get("name") == part), None)
+    if spec is None:
+        names = ", ".join(p.get("name", "?") for p in board.get("part", []))
+        raise _located(profile, where, f"[links] {source}: {target!r}: the board has no part {part!r} "
+                       f"(parts: {names})", "links", None, source)
+    required, optional = kinds.lookup("part", spec.get("kind"), where).terminals
+    if term.upper() not in required + optional:
+        raise _located(profile, where, f"[links] {source}: {target!r}: part {part} ({spec.get('kind')}) has "
+                       f"no terminal {term}; terminals: {', '.join(required + optional) or 'none'}",
+                       "links", None, source)
+
+
 def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool,
                  engine: str = "reference") -> dict:
     system = profile["system"]
@@ -221,6 +238,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
             part, _, term = rest.partition(".")
             if member not in external or not part or not term:
                 raise ConfigError(f"{where}: [links] {source}: {target!r} is not member.part.TERMINAL")
+            _check_link_target(profile, where, source, target, member_profiles[member][0], part, term)
             external[member].setdefault(part, {})[term] = net
 
     buses: dict = {}

@@ -222,6 +222,10 @@ def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp
     ('loads = ["mcm1.ibt2"', 'loads = ["mcm1.motor"', "part battery: loads = 'mcm1.motor' is not a bts7960 part"),
     ('motors = ["mcm1.motor"', 'motors = ["mcm1.ibt2"', "part body: motors = 'mcm1.ibt2' is not a dcmotor part"),
     ('board = "pro-mini"', 'board = "pro-mini2"', "[[member]] mcm1: unknown board 'pro-mini2'"),
+    # was blamed on boards/pro-mini.toml:90, a file the user did not touch
+    ('"mcm1.ibt2.R_EN"', '"mcm1.ibt2.R_ENN"',
+     "[links] estop.ENABLE_OUT: 'mcm1.ibt2.R_ENN': part ibt2 (bts7960) has no terminal R_ENN"),
+    ('"mcm1.ibt2.R_EN"', '"mcm1.ibt3.R_EN"', "[links] estop.ENABLE_OUT: 'mcm1.ibt3.R_EN': the board has no part 'ibt3'"),
 ])
 def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
     """Were "load 'motor' is not a bridge", "'ibt2' is not a wheel motor" and "unknown board" without
