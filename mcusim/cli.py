@@ -619,6 +619,8 @@ def main(argv=None) -> int:
         if args.cmd == "boards":
             from .board import board_names, read_profile, shipped_text
             if args.show is not None:
+                if args.kinds:
+                    raise ConfigError("boards: give --show BOARD or --kinds, not both")
                 sys.stdout.write(shipped_text(args.show))
                 return 0
             if args.kinds:

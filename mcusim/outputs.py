@@ -58,6 +58,11 @@ class Output:
             return
         folder = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(folder):
+            above = folder
+            while above and not os.path.exists(above):
+                above = os.path.dirname(above) if os.path.dirname(above) != above else ""
+            if above and not os.path.isdir(above):
+                raise ConfigError(f"{opt} {path}: {above} is a file, not a folder")
             raise ConfigError(f"{opt} {path}: no folder {folder}")
         if not os.access(folder, os.W_OK | os.X_OK):
             raise ConfigError(f"{opt} {path}: cannot write in folder {folder} (permission denied)")

@@ -409,8 +409,10 @@ def check_profile(prof: Profile) -> None:
     allowed = SYSTEM_TABLES if system else BOARD_TABLES
     for k in prof:
         if k not in allowed:
+            hint = ("; a scenario file? run it with --scenario FILE and a board"
+                    if k in ("scenario", "at", "expect") else "")
             raise prof.err(f"unknown table or key {k!r} in a {'system' if system else 'board'} profile "
-                           f"(known: {', '.join(allowed)})", None, None, k)
+                           f"(known: {', '.join(allowed)}){hint}", None, None, k)
     if system:
         _check_system(prof)
     else:

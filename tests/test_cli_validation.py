@@ -245,3 +245,19 @@ def test_a_summary_that_cannot_be_written_after_the_run_spares_the_streamed_outp
                                 "/dev/full", "-q"], "--summary /dev/full: No space left on device")
     assert "--csv" not in err and "did not complete" not in err, err
     assert csv.read_text().splitlines()[-1].startswith("0.003,") and not (tmp_path / "ok.csv.part").exists()
+
+
+def test_an_output_under_a_file_says_the_file_is_not_a_folder(tmp_path, capsys):
+    (tmp_path / "out.json").write_text("{}")
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1ms", "--csv", str(tmp_path / "out.json" / "x.csv")],
+                 f"{tmp_path / 'out.json'} is a file, not a folder")
+
+
+def test_boards_takes_show_or_kinds_not_both(capsys):
+    _usage_error(capsys, ["boards", "--kinds", "--show", "pro-mini"], "give --show BOARD or --kinds, not both")
+
+
+def test_a_scenario_file_given_as_the_board_suggests_scenario(capsys):
+    from pathlib import Path
+    sc = Path(__file__).resolve().parent.parent / "scenarios" / "step_response.toml"
+    _usage_error(capsys, ["run", str(sc)], "a scenario file? run it with --scenario FILE")
