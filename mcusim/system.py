@@ -179,6 +179,26 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     return sys_parts
 
 
+def _with_member_hint(exc: ConfigError, main_fw: dict, member_profiles: dict) -> ConfigError:
+    """``firmware.<key>`` is the main board's firmware: where the key is unknown there but another
+    member's firmware takes it (the rover's wheel PID on the modules), say how to reach that one."""
+    from . import kinds
+    if not str(exc).startswith("unknown firmware parameter"):
+        return exc
+    takers = {}
+    for key in main_fw:
+        for name, (prof, _) in member_profiles.items():
+            kind = (prof.get("firmware") or {}).get("kind")
+            params = getattr(kinds.lookup("firmware", kind, name).load(), "PARAMS", {}) if kind else {}
+            if key in params:
+                takers.setdefault(key, []).append(name)
+    if not takers:
+        return exc
+    key, names = next(iter(takers.items()))
+    return ConfigError(f"firmware.{key}: not a parameter of the main board's firmware; the firmware of "
+                       f"{', '.join(names)} takes it: --set {names[0]}.firmware.{key}=...")
+
+
 def _check_link_target(profile, where, source, target, board, part, term) -> None:
     """A [links] target names a part of the member's board and one of its kind's terminals: the
     mistake is the system file's, at its [links] line (the board's own check would blame the
@@ -246,9 +266,12 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
     try:
         for m in specs:
             name = m["name"]
-            members[name] = _build_member(
-                m, *member_profiles[name], member_sets[name], present[name],
-                main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
+            try:
+                members[name] = _build_member(
+                    m, *member_profiles[name], member_sets[name], present[name],
+                    main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
+            except ConfigError as exc:
+                raise _with_member_hint(exc, main_fw if name == main else {}, member_profiles) from None
         _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     except Exception:

@@ -261,3 +261,10 @@ def test_a_scenario_file_given_as_the_board_suggests_scenario(capsys):
     from pathlib import Path
     sc = Path(__file__).resolve().parent.parent / "scenarios" / "step_response.toml"
     _usage_error(capsys, ["run", str(sc)], "a scenario file? run it with --scenario FILE")
+
+
+def test_a_module_parameter_set_on_the_rover_as_the_controllers_says_where_it_belongs(capsys):
+    """Was a list of about 45 controller parameters: the wheel PID is the modules' firmware."""
+    _usage_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "firmware.kp=1"],
+                 "firmware.kp: not a parameter of the main board's firmware; the firmware of mcm1, mcm2, mcm3, "
+                 "mcm4 takes it: --set mcm1.firmware.kp=...")
