@@ -74,6 +74,8 @@ def _lambda_source(fn) -> str | None:
         except SyntaxError:
             continue
         lambdas = [n for n in ast.walk(tree) if isinstance(n, ast.Lambda)]
+        if len(lambdas) > 1:      # several on the statement (one inside another): the one that is fn
+            lambdas = _lambda_of(fn, lambdas, lines)
         if len(lambdas) == 1:
             seg = ast.get_source_segment(chunk, lambdas[0])
             if seg:
@@ -81,6 +83,24 @@ def _lambda_source(fn) -> str | None:
         break
     first = " ".join(lines[0].split())
     return first[:200] or None
+
+
+def _lambda_of(fn, lambdas, lines) -> list:
+    """Of the lambdas of a statement, the innermost whose body holds ``fn``'s first instruction
+    (its position in the source, relative to the statement's first line)."""
+    try:
+        start = inspect.getsourcelines(fn)[1]
+        pos = next(p for p in fn.__code__.co_positions()
+                   if p[0] is not None and p[2] is not None and p[3] is not None and p[3] > p[2])
+    except (OSError, TypeError, StopIteration):
+        return lambdas
+    # dedent shifted the columns of every line by the same amount
+    first = inspect.getsourcelines(fn)[0][0]
+    shift = len(first) - len(first.lstrip()) - (len(lines[0]) - len(lines[0].lstrip()))
+    line, col = pos[0] - start + 1, pos[2] - shift
+    inside = [n for n in lambdas if (n.body.lineno, n.body.col_offset) <= (line, col)
+              <= (n.body.end_lineno, n.body.end_col_offset)]
+    return [max(inside, key=lambda n: (n.body.lineno, n.body.col_offset))] if inside else lambdas
 
 
 def _ticks(sim, duration) -> int:

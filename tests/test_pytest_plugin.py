@@ -175,6 +175,16 @@ def test_describe_condition():
     assert describe_condition(Check()) == "Check()"
 
 
+def test_describe_condition_picks_the_lambda_among_several_on_its_line():
+    """Was the whole line (or the function's repr): a condition made by a lambda that returns a
+    lambda, or one of several lambdas on a line."""
+    above = lambda k: (lambda: k > 3)
+    assert describe_condition(above(2)) == "lambda: k > 3"
+    pair = [lambda x: x + 1, lambda y: y * 2]
+    assert describe_condition(pair[1]) == "lambda y: y * 2"
+    assert describe_condition(pair[0]) == "lambda x: x + 1"
+
+
 def test_vcd_filename():
     assert vcd_filename("tests/test_fw.py::test_step[10]") == "tests_test_fw.py__test_step_10.vcd"
     assert vcd_filename("test_a.py::TestX::test_b[a b-c]", 2) == "test_a.py__TestX__test_b_a_b-c-2.vcd"
