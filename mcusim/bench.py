@@ -15,13 +15,15 @@ from .errors import ConfigError, TimeError
 from .params import fmt_duration
 
 
-def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True) -> dict:
+def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True,
+          on_run=None) -> dict:
     """Run the profile's fixed ``[bench.set]`` scenario ``repeat`` times; figures of the median run.
     ``engine="both"`` runs the fast and the reference engine alternately in this process and adds
-    ``reference_realtime_factor`` and ``speedup`` (fast over reference)."""
+    ``reference_realtime_factor`` and ``speedup`` (fast over reference). ``on_run(engine)``, if
+    given, is called before each run (outside the timing): a progress display."""
     if engine == "both":
         fast, ref = {}, {}
-        runs = [bench(board, duration, 1, e, firmware) for _ in range(repeat) for e in ENGINES]
+        runs = [bench(board, duration, 1, e, firmware, on_run) for _ in range(repeat) for e in ENGINES]
         fast = _median_of([r for r in runs if r["engine"] == "fast"])
         ref = _median_of([r for r in runs if r["engine"] == "reference"])
         fast["reference_realtime_factor"] = ref["realtime_factor"]
@@ -36,6 +38,8 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
     runs = []
     table = "[bench.set]" if profile.get("bench", {}).get("set") else "[run.set]"
     for _ in range(repeat):
+        if on_run is not None:
+            on_run(engine)
         try:
             sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
         except ConfigError as exc:

@@ -207,6 +207,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--engine", choices=ENGINES + ("both",), default=DEFAULT_ENGINE,
                    help="fast (default), reference, or both alternately in one process with the speedup")
     b.add_argument("--json", metavar="FILE", help="write the figures as JSON")
+    b.add_argument("--quiet", "-q", action="store_true", help="no progress line on stderr")
     b.add_argument("--firmware", metavar="APP.ELF", help="bench a compiled Cortex-M image instead of the "
                    "profile's firmware")
     return p
@@ -531,8 +532,20 @@ def cmd_bench(args) -> int:
     outs = Outputs([args.board] if args.board.endswith(".toml") else [])
     out = outs.add("--json", args.json) if args.json else None
     outs.check()
+    total = args.repeat * (2 if args.engine == "both" else 1)
+    done = []
+
+    def on_run(engine):         # a line on a terminal's stderr, rewritten before each run
+        done.append(engine)
+        sys.stderr.write(f"\rbench run {len(done)}/{total} ({engine} engine, "
+                         f"{fmt_duration(args.duration)} simulated) ")
+        sys.stderr.flush()
+    show = not args.quiet and getattr(sys.stderr, "isatty", lambda: False)()
     try:
-        r = bench(args.board, args.duration, args.repeat, args.engine, args.firmware or True)
+        r = bench(args.board, args.duration, args.repeat, args.engine, args.firmware or True,
+                  on_run if show else None)
+        if show:
+            sys.stderr.write("\r" + " " * 60 + "\r")
         if out is not None:
             with open(out.target, "w") as f:
                 json.dump(r, f, indent=2)

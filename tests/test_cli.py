@@ -182,3 +182,12 @@ def test_version_prints_the_installed_version(capsys):
 def test_an_unknown_option_points_at_the_help_of_its_command(capsys):
     assert main(["bench", "nucleo-f746", "--foo"]) == 2
     assert capsys.readouterr().err == "mcusim: error: unrecognized arguments: --foo (see mcusim bench --help)\n"
+
+
+def test_bench_shows_its_runs_on_a_terminal_and_not_with_quiet(monkeypatch, capsys):
+    """Was silent for the whole bench (13.6 s for three reference runs of 3 s)."""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert main(["bench", "pro-mini", "--duration", "10ms", "--repeat", "2"]) == 0
+    assert "bench run 2/2 (fast engine, 10ms simulated)" in capsys.readouterr().err
+    assert main(["bench", "pro-mini", "--duration", "10ms", "--repeat", "2", "-q"]) == 0
+    assert "bench run" not in capsys.readouterr().err
