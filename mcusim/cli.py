@@ -403,8 +403,12 @@ def cmd_run(args) -> int:
             try:
                 sim.timebase.ticks(value)
             except TimeError:
+                hz = sim.timebase.base_hz
+                nearest = Fraction(round(Fraction(value) * hz), hz)
+                if nearest > 0 and 10**12 % nearest.denominator == 0:   # a short decimal: offer it
+                    hint = f"the nearest is {fmt_duration(nearest)}"
                 raise ConfigError(f"{opt} {fmt_duration(value)}: not a whole number of base ticks "
-                                  f"(1/{sim.timebase.base_hz} s); {hint}") from None
+                                  f"(1/{hz} s); {hint}") from None
         gdb = None
         if args.gdb is not None:
             from .elf.gdb import GdbServer

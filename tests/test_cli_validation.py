@@ -268,3 +268,9 @@ def test_a_module_parameter_set_on_the_rover_as_the_controllers_says_where_it_be
     _usage_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "firmware.kp=1"],
                  "firmware.kp: not a parameter of the main board's firmware; the firmware of mcm1, mcm2, mcm3, "
                  "mcm4 takes it: --set mcm1.firmware.kp=...")
+
+
+def test_a_time_off_the_base_tick_offers_the_nearest_that_is_on_it(capsys):
+    """Was "try 10ms or 2s": 1.0000001 ms at 216 MHz is 216000.0216 ticks, the nearest 1 ms."""
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1.0000001ms"],
+                 "--duration 1.0000001ms: not a whole number of base ticks", "the nearest is 1ms")

@@ -76,7 +76,7 @@ def resolve_firmware(path):
     name = p.stem if p.suffix == ".elf" else p.name
     if name in shipped:
         return shipped[name]
-    raise ConfigError(f"--firmware {str(path)!r}: no such file, and no shipped image of that name "
+    raise ConfigError(f"firmware {str(path)!r}: no such file, and no shipped image of that name "
                       f"(shipped: {', '.join(shipped) or 'none'})")
 
 
