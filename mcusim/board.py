@@ -220,17 +220,28 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
 
     order = [s.get("name") for s in specs]
 
+    def wrong_kind(kind_name, obj, allowed) -> bool:
+        """A built-in kind that is none of ``allowed`` (a bridge named as a motor). A part of a
+        kind registered elsewhere (a plugin's motor) is left to the part that takes it."""
+        if not allowed:
+            return False
+        builtin = kinds.builtin_part_kinds()
+        if obj is not None:
+            ok = tuple(builtin[k] for k in allowed if k in builtin)
+            return isinstance(obj, tuple(builtin.values())) and not isinstance(obj, ok)
+        return kind_name in builtin and kind_name not in allowed
+
     def ref(name, who, key, allowed=()):
         found = parts[name] if name in parts else lookup(name) if lookup is not None else None
         if found is None:
             later = name in order and order.index(name) > order.index(who)
-            if later and allowed and specs[order.index(name)].get("kind") not in allowed:
+            if later and wrong_kind(specs[order.index(name)].get("kind"), None, allowed):
                 raise _PartError(f"part {who}: {key} = {name!r} is not a {' or '.join(allowed)} part",
                                  who, key, None, where)
             raise _PartError(f"part {who}: {key} = {name!r} is declared after it; parts are built in "
                              f"order, so declare {name} first" if later else
                              f"part {who}: no part {name!r} declared before it", who, key, None, where)
-        if allowed and not isinstance(found, tuple(kinds.lookup("part", k, where).load() for k in allowed)):
+        if wrong_kind(None, found, allowed):
             raise _PartError(f"part {who}: {key} = {name!r} is not a {' or '.join(allowed)} part",
                              who, key, None, where)
         return found

@@ -262,10 +262,11 @@ def _in_run_set(args, sets: dict, exc: ConfigError) -> ConfigError:
     user = dict(args.sets)
     profile = read_profile(args.board)[0]
     for key in profile.get("run", {}).get("set", {}):
-        if msg.startswith(f"--set {key}"):      # the key came from the file, not from a --set
-            msg = msg[len("--set "):]
-        if key in sets and key not in user and (msg.startswith(key) or repr(key) in msg) and hasattr(profile, "err"):
-            return profile.err(f"[run.set] {msg}", "run", None, "set", key)
+        if key in user or key not in sets or not hasattr(profile, "err"):
+            continue
+        text = msg.removeprefix("--set ")   # the key came from the file
+        if text[len(key):len(key) + 1] in (":", " ", "=") and text.startswith(key) or repr(key) in text:
+            return profile.err(f"[run.set] {text}", "run", None, "set", key)
     return exc
 
 
@@ -546,10 +547,13 @@ def cmd_bench(args) -> int:
         sys.stderr.flush()
     show = not args.quiet and getattr(sys.stderr, "isatty", lambda: False)()
     try:
-        r = bench(args.board, args.duration, args.repeat, args.engine, args.firmware or True,
-                  on_run if show else None)
-        if show:
-            sys.stderr.write("\r" + " " * 60 + "\r")
+        try:
+            r = bench(args.board, args.duration, args.repeat, args.engine, args.firmware or True,
+                      on_run if show else None)
+        finally:
+            if show and done:       # clear the progress line, also before an error's message
+                sys.stderr.write("\r" + " " * 100 + "\r")
+                sys.stderr.flush()
         if out is not None:
             with open(out.target, "w") as f:
                 json.dump(r, f, indent=2)
@@ -585,12 +589,14 @@ def _short(exc, limit: int = 600) -> str:
 
 @contextlib.contextmanager
 def _writing(out):
-    """A file written after the run: an OSError names its option and path (not a temporary)."""
+    """A file written after the run: an OSError names its option and path (not a temporary);
+    once written it gets its name at once, whatever happens to the next one."""
     try:
         yield
     except OSError as exc:
         exc.filename = f"{out.option} {out.path}"
         raise
+    out.commit()
 
 
 def _os_error(exc: OSError, args) -> str:

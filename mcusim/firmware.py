@@ -120,7 +120,7 @@ class Task(Context):
         # a simulation dropped before its tasks ran: end the coroutine quietly (Python warns
         # about a coroutine that was never awaited)
         coro = getattr(self, "coro", None)
-        if coro is not None and not self.started:
+        if coro is not None and coro in _unstarted:
             coro.close()
 
 
@@ -477,7 +477,6 @@ class Rtos:
 
     def _start(self, task: Task):
         task.started = True
-        _unstarted.discard(task.coro)
         self.kernel.after(0, self._step, task, prio=PRIO_CPU)
 
     def _step(self, task: Task) -> None:
@@ -485,6 +484,7 @@ class Rtos:
             task.remaining, task.on_done = 0, self._step
             return
         result, task.result = task.result, None
+        _unstarted.discard(task.coro)       # its first step: awaited from here on
         try:
             req = self.cpu.run_code(task.coro.send, result)
         except StopIteration:

@@ -277,7 +277,7 @@ PARTS = {k.name: k for k in (
                f"ocv_full = {v['ocv_full']:g} V must be above ocv_empty = {v['ocv_empty']:g} V",)),
     Kind("part", "divider", "mcusim.plant.parts:DividerPart", _P(
         r_top=_num(33e3, above=0, max=1e9, **_OHM), r_bottom=_num(6.8e3, above=0, max=1e9, **_OHM)),
-        "resistor divider from a part's voltage", refs=("source",), ref_kinds={"source": ("battery",)}),
+        "resistor divider from a part's voltage", refs=("source",)),
     Kind("part", "rover-body", "mcusim.plant.parts:RoverBodyPart", _P(
         sides=Param(("L", "R"), length=range(2, 9), items=Param("L", choices=("L", "R"))),
         directions=Param((1, 1), length=range(2, 9), items=Param(1, choices=(1, -1))),
@@ -321,6 +321,11 @@ def _entry_points(group: str) -> dict:
             found[ep.name] = Kind(group, ep.name, ep, origin=f"entry point {ep.value}")
         _registered[group] = found
     return _registered[group]
+
+
+def builtin_part_kinds() -> dict:
+    """mcusim's own part kinds: name -> class (for the kind checks of part references)."""
+    return {name: kind.load() for name, kind in PARTS.items()}
 
 
 def register(group: str, name: str, cls, **declared) -> Kind:

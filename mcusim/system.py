@@ -38,6 +38,8 @@ parameter of the main board's firmware; any other key is an input of the main fi
 
 from __future__ import annotations
 
+import re
+
 from .board import (
     _firmware_inputs,
     _located,
@@ -185,15 +187,15 @@ def _with_member_hint(exc: ConfigError, main_fw: dict, member_profiles: dict) ->
     from . import kinds
     if not str(exc).startswith("unknown firmware parameter"):
         return exc
-    takers = {}
-    for key in main_fw:
+    takers, unknown = {}, [k for k in main_fw if f"firmware.{k}" in str(exc) or f" {k}" in str(exc)]
+    for key in unknown:
         for name, (prof, _) in member_profiles.items():
             kind = (prof.get("firmware") or {}).get("kind")
             params = getattr(kinds.lookup("firmware", kind, name).load(), "PARAMS", {}) if kind else {}
             if key in params:
                 takers.setdefault(key, []).append(name)
-    if not takers:
-        return exc
+    if len(takers) != 1 or len(unknown) != 1:
+        return exc          # several unknown keys, or one no member takes: the full message
     key, names = next(iter(takers.items()))
     return ConfigError(f"firmware.{key}: not a parameter of the main board's firmware; the firmware of "
                        f"{', '.join(names)} takes it: --set {names[0]}.firmware.{key}=...")
@@ -236,6 +238,8 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         try:
             prof, pwhere = read_profile(m["board"])
         except ConfigError as exc:      # a board the system names: at the line that names it
+            if re.match(r"\S+:\d+: ", str(exc)):
+                raise               # a mistake inside that board's own file: its file:line first
             raise _located(profile, where, f"[[member]] {m['name']}: {exc}", "member", i, "board") from None
         if is_system(prof):
             raise ConfigError(f"{where}: member {m['name']}: {m['board']} is a system, not a board")

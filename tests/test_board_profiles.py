@@ -287,3 +287,47 @@ def test_a_run_set_key_of_the_file_is_blamed_on_the_file_not_on_set(tmp_path, ca
     line = text[:text.index('"cmd_vel.linear" = ')].count("\n") + 1
     assert f"s.toml:{line}: [run.set] cmd_vel.linear: no board or part 'cmd_vel'" in err, err
     assert "--set" not in err, err
+
+
+class _WrappedMotor:
+    """A registered motor kind that is not a DcMotor subclass: it forwards to one it holds."""
+
+    def __init__(self, kernel, name, **kw):
+        from mcusim.plant.dcmotor import DcMotor
+        object.__setattr__(self, "_m", DcMotor(kernel, name=name, **kw))
+
+    def __getattr__(self, k):
+        return getattr(self._m, k)
+
+
+def test_the_kind_check_of_references_leaves_parts_of_registered_kinds_alone(tmp_path, monkeypatch):
+    """The check refuses a built-in kind of the wrong sort (a bridge named as a motor) only: a
+    plugin's motor kind drives a bridge and an encoder as before, and a divider takes any part
+    with a voltage (another divider)."""
+    monkeypatch.setattr(kinds, "_registered", {})
+    kinds.register("part", "wrapped-motor", _WrappedMotor)
+    p = tmp_path / "b.toml"
+    p.write_text(shipped_text("pro-mini").replace('kind = "dcmotor"', 'kind = "wrapped-motor"', 1))
+    sim = mcusim.load(str(p), firmware=False)
+    sim.run(seconds="2ms")
+    sim.close()
+    text = shipped_text("elementall")
+    at = text.index('kind = "divider"')
+    end = text.index("\n[", at)
+    chained = text[:end] + '\n\n[[part]]\nname = "vdiv2"\nkind = "divider"\nsource = "vbat_divider"\nr_top = 10000\nr_bottom = 10000\n' + text[end:]
+    p.write_text(chained)
+    sim = mcusim.load(str(p))
+    sim.run(seconds="1ms")
+    assert 0 < sim.part("vdiv2").voltage() < sim.part("vbat_divider").voltage()
+    sim.close()
+
+
+def test_a_mistake_inside_a_members_own_board_file_is_named_at_that_file_first(tmp_path, capsys):
+    """From review: the system file's member line came first, so an editor jumped there."""
+    pm = tmp_path / "pm.toml"
+    pm.write_text(shipped_text("pro-mini").replace("counts_per_rev = ", "counts_per_rev = -", 1))
+    text = shipped_text("elementall")
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace('board = "pro-mini"', f'board = "{pm}"', 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    assert err.startswith(f"mcusim: error: {pm}:"), err

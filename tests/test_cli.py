@@ -161,6 +161,7 @@ def test_every_subcommand_help_has_examples(capsys):
     ('summary = "firmware.faults"\ncontains = "modules_missing"\n', 0),    # the fault is the point
     ('summary = "firmware.faults"\nequals = []\n', 1),                     # no fault wanted: FAIL
     ('summary = "firmware.modules_missing"\ncontains = "0x0a"\n', 1),     # faults not checked
+    ('time = "1ms"\nsummary = "firmware.faults"\nequals = []\n', 1),     # checked before the fault came
 ])
 def test_a_scenario_that_checks_the_firmware_faults_decides_the_exit_status(tmp_path, capsys, expect, rc):
     """Was exit 1 whatever the scenario said: a fault-injection scenario expecting the fault could
@@ -191,3 +192,11 @@ def test_bench_shows_its_runs_on_a_terminal_and_not_with_quiet(monkeypatch, caps
     assert "bench run 2/2 (fast engine, 10ms simulated)" in capsys.readouterr().err
     assert main(["bench", "pro-mini", "--duration", "10ms", "--repeat", "2", "-q"]) == 0
     assert "bench run" not in capsys.readouterr().err
+
+
+def test_the_bench_progress_line_is_cleared_before_an_error(monkeypatch, capsys):
+    """From review: the error was printed after the progress text on the same line."""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert main(["bench", "pro-mini", "--duration", "1.0000001ms", "--repeat", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.split("\r")[-1].startswith("mcusim: error: --duration"), repr(err)

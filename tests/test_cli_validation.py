@@ -274,3 +274,30 @@ def test_a_time_off_the_base_tick_offers_the_nearest_that_is_on_it(capsys):
     """Was "try 10ms or 2s": 1.0000001 ms at 216 MHz is 216000.0216 ticks, the nearest 1 ms."""
     _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1.0000001ms"],
                  "--duration 1.0000001ms: not a whole number of base ticks", "the nearest is 1ms")
+
+
+def test_after_run_files_already_written_stay_when_a_later_one_fails(tmp_path, capsys):
+    """From review: the plot and the GTKWave layout were written, then removed without a word
+    when the summary after them could not be written."""
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    png, vcd = tmp_path / "ok.png", tmp_path / "ok.vcd"
+    _usage_error(capsys, ["run", "pro-mini", "--duration", "5ms", "--vcd", str(vcd), "--plot", str(png),
+                          "--summary", "/dev/full", "-q"], "--summary /dev/full")
+    assert png.exists() and vcd.exists() and (tmp_path / "ok.gtkw").exists()
+
+
+def test_a_users_set_typo_is_not_blamed_on_a_run_set_key_it_starts_with(tmp_path, capsys):
+    """From review: --set motor.Rx was reported at the profile's [run.set] "motor.R" line."""
+    from mcusim.board import shipped_text
+    text = shipped_text("pro-mini").replace("[run.set]\n", '[run.set]\n"motor.R" = 2.0\n', 1)
+    p = tmp_path / "rs.toml"
+    p.write_text(text)
+    err = _usage_error(capsys, ["run", str(p), "--set", "motor.Rx=1", "--duration", "1ms"], "--set motor.Rx")
+    assert "[run.set]" not in err, err
+
+
+def test_the_rover_firmware_hint_gives_way_to_the_full_message_for_several_unknown_keys(capsys):
+    err = _usage_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "firmware.typo=2",
+                                "--set", "firmware.kp=1"], "typo")
+    assert "--set mcm1.firmware.kp" not in err

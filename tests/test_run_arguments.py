@@ -65,3 +65,14 @@ def test_a_simulation_dropped_before_it_ran_leaves_no_never_awaited_warning():
     code = "import mcusim\nmcusim.load('elementall')\ns = mcusim.load('pro-mini')\ndel s\n"
     out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr
+
+
+def test_a_run_stopped_before_a_task_took_its_first_step_leaves_no_warning_either():
+    """From review: a task marked started but whose first step was still queued when the run
+    stopped left the warning (its coroutine counted as awaited too early)."""
+    import subprocess
+    import sys
+    code = ("import mcusim\nsim = mcusim.load('ciaa-edu')\nn = [0]\n"
+            "def stop():\n    n[0] += 1\n    return n[0] >= 1\nsim.run(seconds='1ms', stop=stop)\n")
+    out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr

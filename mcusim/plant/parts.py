@@ -38,6 +38,7 @@ class DividerPart(VoltageDivider):
 
 
 class RoverBodyPart(RoverBody):
+    READERS = ("pose_at_now",)     # (x, y, yaw) now, a value a scenario expectation may read
     def __init__(self, kernel, name="body", motors=(), **params):
         super().__init__(kernel, name=name, motors=list(motors), **params)
 

@@ -262,11 +262,12 @@ class Scenario(Checker):
         return any(not r.passed for r in self.results)
 
     def reads_summary(self, path: str) -> bool:
-        """Whether an expectation checks the summary entry ``path`` (or a part of it): the run's
-        verdict on that entry is then the scenario's (``mcusim run`` leaves firmware faults to a
-        scenario that checks ``firmware.faults``)."""
+        """Whether an expectation checks the summary entry ``path`` (or a part of it) at the end
+        of the run: the run's verdict on that entry is then the scenario's (``mcusim run`` leaves
+        firmware faults to a scenario that checks ``firmware.faults``; one checked earlier says
+        nothing of a fault that comes later)."""
         return any(e.source[0] == "summary" and (e.source[1] == path or e.source[1].startswith(path + "."))
-                   for e in self.expects)
+                   and (e.time is None or e.time >= self._duration) for e in self.expects)
 
     def report_entries(self) -> dict:
         """``{"scenario": {...}}`` for the run summary: file, board, duration, passed, the
