@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
+import io
 import json
 import os
 import signal
@@ -627,10 +628,17 @@ def main(argv=None) -> int:
     for --help, 0, and for a usage error found by the argument parser, 2)."""
     try:
         parser = _parser()
-        args, extra = parser.parse_known_args(_negative_values(sys.argv[1:] if argv is None else list(argv)))
+        argv = _negative_values(sys.argv[1:] if argv is None else list(argv))
+        args, extra = parser.parse_known_args(argv)
         if extra:       # name the command whose --help lists what it takes
-            print(f"mcusim: error: unrecognized arguments: {' '.join(extra)} (see mcusim {args.cmd} --help)",
-                  file=sys.stderr)
+            where = f"see mcusim {args.cmd} --help"
+            if args.cmd in argv and argv.index(extra[0]) < argv.index(args.cmd):
+                moved = [a for a in argv if a not in extra]
+                at = moved.index(args.cmd) + 1
+                with contextlib.suppress(SystemExit), contextlib.redirect_stderr(io.StringIO()):
+                    if not parser.parse_known_args(moved[:at] + extra + moved[at:])[1]:
+                        where = f"options of a command go after its name: mcusim {args.cmd} {' '.join(extra)} ..."
+            print(f"mcusim: error: unrecognized arguments: {' '.join(extra)} ({where})", file=sys.stderr)
             return 2
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2

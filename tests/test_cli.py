@@ -200,3 +200,12 @@ def test_the_bench_progress_line_is_cleared_before_an_error(monkeypatch, capsys)
     assert main(["bench", "pro-mini", "--duration", "1.0000001ms", "--repeat", "2"]) == 2
     err = capsys.readouterr().err
     assert err.split("\r")[-1].startswith("mcusim: error: --duration"), repr(err)
+
+
+@pytest.mark.parametrize("argv, hint", [
+    (["-q", "run", "pro-mini"], "options of a command go after its name: mcusim run -q ..."),
+    (["--bogus", "boards"], "see mcusim boards --help"),
+])
+def test_an_option_before_the_command_is_pointed_after_it_if_the_command_takes_it(capsys, argv, hint):
+    assert main(argv) == 2
+    assert hint in capsys.readouterr().err
