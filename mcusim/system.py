@@ -162,7 +162,12 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     try:
         sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
     except _PartError as exc:      # at the line of the part's key, as a board's parts are named
-        msg, name, key, _, _ = exc.args
+        msg, name, key, term, _ = exc.args
+        pin = next((p for p, target in profile.get("pins", {}).items()
+                    if term is not None and target.partition(".")[0] == name
+                    and target.partition(".")[2].upper() == term), None)
+        if pin is not None:         # a [pins] entry names it: that line
+            raise _located(profile, where, msg, "pins", None, pin) from None
         index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
         raise _located(profile, where, msg, "part", index, *((key,) if key else ())) from None
 

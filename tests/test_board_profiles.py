@@ -226,6 +226,9 @@ def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp
     ('"mcm1.ibt2.R_EN"', '"mcm1.ibt2.R_ENN"',
      "[links] estop.ENABLE_OUT: 'mcm1.ibt2.R_ENN': part ibt2 (bts7960) has no terminal R_ENN"),
     ('"mcm1.ibt2.R_EN"', '"mcm1.ibt3.R_EN"', "[links] estop.ENABLE_OUT: 'mcm1.ibt3.R_EN': the board has no part 'ibt3'"),
+    # were the lines of unrelated [[part]] tables
+    ('"estop.ENABLE_IN"', '"estopp.ENABLE_IN"', "[pins] names part 'estopp', which is not declared"),
+    ('"estop.SENSE"', '"estop.SENSEX"', "part estop (estop) has no terminal SENSEX"),
 ])
 def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
     """Were "load 'motor' is not a bridge", "'ibt2' is not a wheel motor" and "unknown board" without
