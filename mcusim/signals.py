@@ -15,7 +15,7 @@ from .errors import McusimError
 
 def _level(level, what: str) -> int:
     """A digital level given from Python: 0 or 1 (False, True), else one clear error."""
-    if level in (0, 1) and not isinstance(level, float):
+    if level in (0, 1):         # 0, 1, False, True, 0.0, 1.0 (a level read back from a CSV)
         return int(level)
     raise McusimError(f"{what}({level!r}): a digital level is 0 or 1")
 
