@@ -198,6 +198,18 @@ class _PartError(ConfigError):
         return f"{self.args[4]}: {self.args[0]}"
 
 
+def located_part_error(profile, where: str, exc: _PartError) -> ConfigError:
+    """``exc`` (from :func:`build_parts`) at the profile's line: the ``[pins]`` entry that wires
+    its terminal, else its part's key (or table)."""
+    msg, name, key, term, _ = exc.args
+    pin = next((p for p, target in profile.get("pins", {}).items() if term is not None
+                and target.partition(".")[0] == name and target.partition(".")[2].upper() == term), None)
+    if pin is not None:
+        return _located(profile, where, msg, "pins", None, pin)
+    index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
+    return _located(profile, where, msg, "part", index, *((key,) if key else ()))
+
+
 def _located(profile, where: str, msg: str, table=None, index=None, *key) -> ConfigError:
     """``msg`` at the profile's line of ``key`` in ``table`` when the profile knows its lines."""
     if hasattr(profile, "err"):
@@ -402,7 +414,6 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
 
     # plant parts and wiring
     wiring: dict[str, dict[str, object]] = {}
-    pin_of: dict = {}                   # (part, TERMINAL) -> the [pins] key that wires it
     for pin, target in profile.get("pins", {}).items():
         part, _, terminal = target.partition(".")
         try:
@@ -410,17 +421,12 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         except ConfigError as exc:
             raise _located(profile, where, f"[pins] {exc}", "pins", None, pin) from None
         wiring.setdefault(part, {})[terminal.upper()] = net
-        pin_of[(part, terminal.upper())] = pin
     for part, terms in (external or {}).items():
         wiring.setdefault(part, {}).update({t.upper(): net for t, net in terms.items()})
     try:
         parts = build_parts(kernel, profile.get("part", []), part_overrides, wiring, where)
     except _PartError as exc:
-        msg, name, key, term, _ = exc.args
-        if term is not None and (name, term) in pin_of:
-            raise _located(profile, where, msg, "pins", None, pin_of[(name, term)]) from None
-        index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
-        raise _located(profile, where, msg, "part", index, *((key,) if key else ())) from None
+        raise located_part_error(profile, where, exc) from None
     # [analog]: an MCU analog input follows a part's analog output (IBT-2 R_IS -> A0)
     for net_name, target in profile.get("analog", {}).items():
         part_name, _, terminal = target.partition(".")

@@ -47,6 +47,7 @@ from .board import (
     board_clocks,
     build,
     build_parts,
+    located_part_error,
     read_profile,
     split_overrides,
 )
@@ -161,15 +162,8 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
         wiring.setdefault(part, {})[term.upper()] = net
     try:
         sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
-    except _PartError as exc:      # at the line of the part's key, as a board's parts are named
-        msg, name, key, term, _ = exc.args
-        pin = next((p for p, target in profile.get("pins", {}).items()
-                    if term is not None and target.partition(".")[0] == name
-                    and target.partition(".")[2].upper() == term), None)
-        if pin is not None:         # a [pins] entry names it: that line
-            raise _located(profile, where, msg, "pins", None, pin) from None
-        index = next((i for i, sp in enumerate(profile.get("part", [])) if sp.get("name") == name), None)
-        raise _located(profile, where, msg, "part", index, *((key,) if key else ())) from None
+    except _PartError as exc:      # at the system file's line, as a board's parts are named
+        raise located_part_error(profile, where, exc) from None
 
     for target, source in profile.get("analog", {}).items():
         member, _, net_name = target.partition(".")
@@ -186,24 +180,30 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     return sys_parts
 
 
-def _with_member_hint(exc: ConfigError, main_fw: dict, member_profiles: dict) -> ConfigError:
+def _with_member_hint(exc: ConfigError, main: str, main_fw: dict, member_profiles: dict) -> ConfigError:
     """``firmware.<key>`` is the main board's firmware: where the key is unknown there but another
     member's firmware takes it (the rover's wheel PID on the modules), say how to reach that one."""
-    from . import kinds
     if not str(exc).startswith("unknown firmware parameter"):
         return exc
-    takers, unknown = {}, [k for k in main_fw if f"firmware.{k}" in str(exc) or f" {k}" in str(exc)]
+    params = {name: _firmware_params(prof, name) for name, (prof, _) in member_profiles.items()}
+    unknown = [k for k in main_fw if k not in params[main]]
+    takers = {}
     for key in unknown:
-        for name, (prof, _) in member_profiles.items():
-            kind = (prof.get("firmware") or {}).get("kind")
-            params = getattr(kinds.lookup("firmware", kind, name).load(), "PARAMS", {}) if kind else {}
-            if key in params:
+        for name, declared in params.items():
+            if key in declared:
                 takers.setdefault(key, []).append(name)
     if len(takers) != 1 or len(unknown) != 1:
         return exc          # several unknown keys, or one no member takes: the full message
     key, names = next(iter(takers.items()))
     return ConfigError(f"firmware.{key}: not a parameter of the main board's firmware; the firmware of "
                        f"{', '.join(names)} takes it: --set {names[0]}.firmware.{key}=...")
+
+
+def _firmware_params(board: dict, where: str) -> dict:
+    """The parameters the firmware kind of a board profile declares (none without firmware)."""
+    from . import kinds
+    kind = (board.get("firmware") or {}).get("kind")
+    return getattr(kinds.lookup("firmware", kind, where).load(), "PARAMS", {}) if kind else {}
 
 
 def _check_link_target(profile, where, source, target, board, part, term) -> None:
@@ -280,7 +280,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                     m, *member_profiles[name], member_sets[name], present[name],
                     main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
             except ConfigError as exc:
-                raise _with_member_hint(exc, main_fw if name == main else {}, member_profiles) from None
+                raise _with_member_hint(exc, main, main_fw if name == main else {}, member_profiles) from None
         _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     except Exception:

@@ -52,10 +52,11 @@ class Crossings:
         nt, firing = self.locate(enc._guards_at(k), t)
         self.pos, self.la, self.lb = k, qa, qb
         return served.Item(self, t, route.returns(t), None if nt is None else (nt, firing[0][6], firing),
-                           (k, qa, qb, route), route)
+                           (k, qa, qb), route)
 
     def commit(self, item):
-        k, qa, qb, route = item.data
+        k, qa, qb = item.data
+        route = item.route
         enc = self.enc
         enc._pos = k
         enc._edges += 1
