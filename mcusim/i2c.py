@@ -84,6 +84,7 @@ from fractions import Fraction
 
 from .errors import McusimError, TimeError
 from .kernel import PRIO_HW
+from .recent import RecentLog
 
 
 class I2cSlave:
@@ -364,7 +365,7 @@ class I2cMaster:
         self.scl_low_ticks, self.scl_high_ticks = int(scl_low_ticks), int(scl_high_ticks)
         self._queue: list = []
         self._current = None
-        self.transfers: list[I2cTransfer] = []
+        self.transfers: RecentLog = RecentLog()     # the recent ones (mcusim.recent)
 
     @property
     def busy(self) -> bool:

@@ -43,7 +43,7 @@ the next rise, however long the master or a slave stretches it. (``L//2`` is at 
 
 USART (:class:`UartWaveform`)
 -----------------------------
-``usart.tx_log`` is replaced by a list subclass holding the same entries whose ``append`` also draws
+``usart.tx_log`` is replaced by a log holding the same entries whose ``append`` also draws
 the frame (``uart.py`` has no observer list; a reference to the old list taken before the tracer
 was made no longer grows). The frame ending at ``tx_log`` tick ``e`` is drawn from the registers at
 its end (LCR word length and parity, ``frame_format()``): start bit (low), data bits LSB first,
@@ -61,6 +61,7 @@ import math
 from fractions import Fraction
 
 from .errors import UnsupportedConfiguration
+from .recent import KEEP, RecentLog
 
 HORIZON_S = Fraction(2, 1000)     # lag every bus tracer asks for when it is made (seconds)
 
@@ -91,11 +92,13 @@ class _LogTap:
         return 0 if self.prev is None else len(self.prev)
 
 
-class _NotifyingList(list):
-    """A list whose ``append`` also calls ``fn(item)`` (after storing it)."""
+class _NotifyingList(RecentLog):
+    """A log (:class:`mcusim.recent.RecentLog`, keeping what the log it stands in for keeps) whose
+    ``append`` also calls ``fn(item)`` (after storing it)."""
 
     def __init__(self, items, fn):
-        super().__init__(items)
+        super().__init__(items, keep=getattr(items, "keep", KEEP))
+        self.total = getattr(items, "total", len(self))
         self.fn = fn
 
     def append(self, item) -> None:

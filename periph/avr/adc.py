@@ -51,6 +51,7 @@ from fractions import Fraction
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.firmware import Signal
 from mcusim.kernel import PRIO_HW
+from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import exact_voltage as _exact
 
@@ -94,7 +95,7 @@ class Adc(Peripheral):
         self._admux_latched = None    # ADMUX value at the start, if ADMUX was written after it
         self._result = None
         self._ev_sample = self._ev_done = None
-        self.history: list[tuple[int, int, int, int]] = []  # (t_start, t_sample, t_done, result)
+        self.history = RecentLog()   # (t_start, t_sample, t_done, result): the recent ones
         self.done = Signal()          # fired at every completion (for busy-waits on ADSC/ADIF)
         mcu.irq.on_entry[vector] = self._entry_clear
 

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.firmware import Signal
+from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 
 TWINT, TWEA, TWSTA, TWSTO, TWWC, TWEN, TWIE = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x01
@@ -75,7 +76,7 @@ class Twi(Peripheral):
         self.state = "idle"     # idle (not addressed) | sr (addressed receiver) | st (transmitter)
         self.general_call = False
         self._tx_last = False
-        self.status_log: list[tuple[int, int]] = []  # (tick, status) each time TWINT is set
+        self.status_log = RecentLog()   # (tick, status) each time TWINT is set: the recent ones
         self._holding = False
         self.twint = Signal()   # fired whenever hardware sets TWINT (for polled firmware)
         bus.attach(self)

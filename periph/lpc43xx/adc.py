@@ -91,6 +91,7 @@ from functools import partialmethod
 from mcusim.errors import ConfigError, McusimError, UnsupportedConfiguration
 from mcusim.firmware import Signal
 from mcusim.kernel import PRIO_HW
+from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import exact_voltage as _exact
 
@@ -160,7 +161,7 @@ class Adc(Peripheral):
         self.strict = strict
         self.conversions = 0
         self.warnings: list[str] = []
-        self.history: list[tuple[int, int, int, int, int]] = []
+        self.history = RecentLog()   # (t_start, t_sample, t_done, channel, result): the recent ones
         self.done = Signal()
         self._warned: set[tuple[Fraction, int]] = set()
         self._conv: _Conversion | None = None

@@ -84,6 +84,7 @@ from __future__ import annotations
 
 from mcusim.errors import UnsupportedConfiguration
 from mcusim.firmware import Signal
+from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 
 AA, SI, STO, STA, I2EN = 0x04, 0x08, 0x10, 0x20, 0x40
@@ -137,7 +138,7 @@ class I2c(Peripheral):
         self.mcu, self.kernel, self.nvic, self.clock = mcu, mcu.kernel, mcu.irq, clock
         self.bus, self.irq = bus, irq
         self.si = Signal()          # fired whenever hardware sets SI (for polled firmware)
-        self.status_log: list[tuple[int, int]] = []   # (tick, status) each time SI is set
+        self.status_log = RecentLog()    # (tick, status) each time SI is set: the recent ones
         self._owner = False         # between our START and our STOP
         self._inflight = None       # "start" | "addr" | "write" | "read" | "stop" | None
         self._code = NO_INFO        # status of the step that set SI

@@ -69,7 +69,7 @@ Transmitter
   transmitter is idle moves to the shift register (TSR) at once, so 1 + 16 bytes can be in flight.
   A THR write to a full FIFO is lost (counted in ``tx_overflows``), as on the chip.
 * At each frame end the byte (masked to the word length) is appended to ``tx_log`` as
-  ``(tick, byte)`` and handed to ``endpoint.transmit(byte, tick)``; then the next FIFO byte, if
+  ``(tick, byte)`` (the recent ones: :mod:`mcusim.recent`, at least the last 10 000) and handed to ``endpoint.transmit(byte, tick)``; then the next FIFO byte, if
   any and TER.TXEN = 1, starts at once.
 * LSR.THRE = TX FIFO empty; LSR.TEMT = FIFO and TSR empty.
 * TER.TXEN = 0 stops the transmitter after the frame in progress; bytes wait in the FIFO until
@@ -114,6 +114,7 @@ from fractions import Fraction
 
 from mcusim.errors import BusFault, UnsupportedConfiguration
 from mcusim.firmware import Signal
+from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 
 # instance -> (base address, NVIC IRQ) [V: LO-MAP, SVD, reference §2.3]
@@ -205,8 +206,8 @@ class Usart(Peripheral):
         self._cti_at = None                  # tick at which the character time-out fires
         self._cti_ev = None
         # observers
-        self.tx_log: list[tuple[int, int]] = []
-        self.rx_log: list[tuple[int, int]] = []
+        self.tx_log: RecentLog = RecentLog()    # (tick, byte): the recent ones (mcusim.recent)
+        self.rx_log: RecentLog = RecentLog()
         self.tx_overflows = 0
         self.rx_overruns = 0
         self.tx_done = Signal()
