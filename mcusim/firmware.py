@@ -84,6 +84,36 @@ class ClosedForm:
         self.handler, self.nets, self.step, self.valid = handler, tuple(nets), step, valid
 
 
+class TickForm:
+    """A periodic interrupt's handler in closed form, for the fast engine's served ticks
+    (:mod:`mcusim.engine.ticks`): Timer0's overflow advancing ``millis()``. ``peek(n)`` is the
+    value the handler keeps (``timer0_millis``) after ``n`` more runs, computed without changing
+    anything; ``apply(n)`` does what ``n`` runs do, firing ``signal`` only by counting it
+    (``signal.count += n``: the task it would wake serves its pass as an :class:`IdlePass`). The
+    handler reads no register and schedules nothing. It applies while ``handler`` is the one
+    bound to the vector and ``valid()`` holds."""
+
+    __slots__ = ("apply", "handler", "peek", "signal", "valid")
+
+    def __init__(self, handler, signal, peek, apply, valid=lambda: True):
+        self.handler, self.signal, self.peek, self.apply, self.valid = handler, signal, peek, apply, valid
+
+
+class IdlePass:
+    """What a task waiting on a :class:`Signal` does when it fires, declared for the fast engine
+    (``rtos.wait_signal(signal, idle=IdlePass(...))``): where ``idle(value)`` holds for the value the
+    signal's :class:`TickForm` reports after the firing, the task's pass only reads (no register
+    write, no state kept from one pass to the next), costs ``cycles`` and waits on the signal
+    again. Such passes may then be served without resuming the task's coroutine; it resumes at
+    the first firing after which ``idle`` does not hold, exactly where it would have. ``valid()``:
+    whatever else the declarer needs (no register log watching the pass's reads)."""
+
+    __slots__ = ("cycles", "idle", "valid")
+
+    def __init__(self, cycles: int, idle, valid=lambda: True):
+        self.cycles, self.idle, self.valid = int(cycles), idle, valid
+
+
 class Context:
     """Something that occupies the CPU: a task or an exception handler."""
 
@@ -115,6 +145,7 @@ class Task(Context):
         self.result = None     # sent into the coroutine when it resumes
         self.deadline = None   # RTOS tick at which a wait_signal(timeout=) gives up
         self.wait_token = None
+        self.waiting_on = None  # while blocked in wait_signal: (signal, its IdlePass or None)
 
     def __del__(self):
         # a simulation dropped before its tasks ran: end the coroutine quietly (Python warns
@@ -161,6 +192,7 @@ class Cpu:
         self.busy_ticks = 0
         self._inline_depth = 0
         self.closed_forms: dict[int, ClosedForm] = {}
+        self.tick_forms: dict[int, TickForm] = {}
         self.served_isrs = 0   # fast engine: handler runs applied in closed form (engine.served)
 
     # --- firmware-facing ------------------------------------------------------------------
@@ -174,6 +206,43 @@ class Cpu:
             self.closed_forms.pop(irqn, None)
         else:
             self.closed_forms[irqn] = form
+
+    def tick_form(self, irqn: int, form: TickForm | None) -> None:
+        """Declare (or with None withdraw) the closed form of periodic interrupt ``irqn``'s handler."""
+        if form is None:
+            self.tick_forms.pop(irqn, None)
+        else:
+            self.tick_forms[irqn] = form
+
+    def served_tick(self, irqn: int):
+        """(entry ticks, handler ticks, form, pass ticks) when a request of ``irqn`` raised now would
+        be taken at once and be all the CPU does until its handler returns (as :meth:`served`,
+        with no task running: all are blocked), its handler has a :class:`TickForm` that stands,
+        and the one task its signal wakes serves an :class:`IdlePass` (pass ticks: its cycles).
+        Else None."""
+        form = self.tick_forms.get(irqn)
+        if form is None or self.stack or self._in_code:
+            return None
+        quiet = getattr(self.nvic, "quiet", None)
+        if quiet is None or not quiet():
+            return None
+        rtos = self.rtos
+        if rtos is None or rtos.current is not None or rtos._wfi_blocked:
+            return None
+        idle = None
+        for t in rtos.tasks:
+            if t.state == "ready":
+                return None
+            w = t.waiting_on
+            if t.state == "blocked" and w is not None and w[0] is form.signal:
+                if idle is not None or w[1] is None or t.deadline is not None or not w[1].valid():
+                    return None
+                idle = w[1]
+        vec = self.vectors.get(irqn)
+        if idle is None or vec is None or vec[0] is not form.handler or not form.valid():
+            return None
+        period = self.clock.period
+        return self.entry_latency * period, vec[1] * period, form, idle
 
     def served(self, irqn: int):
         """(entry ticks, handler ticks, form) when a request of ``irqn`` raised now would be taken at
@@ -425,14 +494,16 @@ class Rtos:
         return _Req("wfi", None)
 
     @staticmethod
-    def wait_signal(signal: Signal, timeout: int | None = None, since: int | None = None) -> _Req:
+    def wait_signal(signal: Signal, timeout: int | None = None, since: int | None = None,
+                    idle: IdlePass | None = None) -> _Req:
         """Block until ``signal`` fires (a busy-wait on a peripheral flag, see :class:`Signal`).
 
         With ``timeout`` (RTOS ticks, like NuttX's ``nxsem_tickwait``) the task also wakes when the
         tick count has advanced by that much; ``await`` returns True if the signal fired, False on
         a timeout. With ``since`` (``signal.count`` when the poll read its state) a signal that
-        fired after that returns True at once: the next poll would see the change."""
-        return _Req("signal", (signal, timeout, since))
+        fired after that returns True at once: the next poll would see the change. ``idle``
+        declares the passes that find nothing to do (:class:`IdlePass`)."""
+        return _Req("signal", (signal, timeout, since, idle))
 
     def interrupt_done(self) -> None:
         if not self._wfi_blocked:
@@ -456,6 +527,7 @@ class Rtos:
             elif (t.state == "blocked" and t.wake_tick == "signal" and t.deadline is not None
                   and t.deadline <= self.tick_count):
                 t.state, t.wake_tick, t.deadline, t.result = "ready", None, None, False
+                t.waiting_on = None
 
     def reschedule(self) -> None:
         """Pick the most urgent ready task (called in thread mode, after exceptions return)."""
@@ -495,12 +567,12 @@ class Rtos:
             self.cpu.busy_ticks += self.cpu.clock.cycles(req.arg)
             self.cpu._busy(task, self.cpu.clock.cycles(req.arg), self._step)
         elif req.kind == "signal":
-            signal, timeout, since = req.arg
+            signal, timeout, since, idle = req.arg
             if since is not None and signal.count != since:
                 task.result = True
                 self.kernel.after(0, self._step, task, prio=PRIO_CPU)
                 return
-            task.state, task.wake_tick = "blocked", "signal"
+            task.state, task.wake_tick, task.waiting_on = "blocked", "signal", (signal, idle)
             task.deadline = None if timeout is None else self.tick_count + max(1, int(timeout))
             task.on_done = self._step
             task.remaining = 0
@@ -510,6 +582,7 @@ class Rtos:
             def wake(task=task, token=token):
                 if task.state == "blocked" and task.wake_tick == "signal" and task.wait_token is token:
                     task.state, task.wake_tick, task.deadline, task.result = "ready", None, None, True
+                    task.waiting_on = None
                     if not self.cpu.stack:
                         self.reschedule()
                         self.cpu._resume(self.current)

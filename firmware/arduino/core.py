@@ -37,7 +37,7 @@ from mcusim.fw.arduino.core_api import (  # noqa: F401
 )
 
 from mcusim.errors import ConfigError
-from mcusim.firmware import ClosedForm, Signal
+from mcusim.firmware import ClosedForm, IdlePass, Signal, TickForm
 
 # data-space addresses (iom328p.h)
 PINB, DDRB, PORTB = 0x23, 0x24, 0x25
@@ -79,7 +79,10 @@ class ArduinoCore:
         self.analog_reference = 1  # DEFAULT: AVcc
         self.debt_cycles = 0
         self.isr_cycles = {0: INT_TRAMPOLINE_CYCLES, 1: INT_TRAMPOLINE_CYCLES}
-        self.cpu.vector(TIMER0_OVF_vect, self.timer0_ovf_isr, cost=TIMER0_OVF_CYCLES)
+        isr = self.timer0_ovf_isr       # one bound object: the tick form stands while it is the vector's
+        self.cpu.vector(TIMER0_OVF_vect, isr, cost=TIMER0_OVF_CYCLES)
+        self.cpu.tick_form(TIMER0_OVF_vect, TickForm(isr, self.millis_changed, self._millis_after,
+                                                     self._overflows))
 
     # --- registers --------------------------------------------------------------------------
     def _r(self, a):
@@ -110,6 +113,11 @@ class ArduinoCore:
             self._w(ADCSRA, self._r(ADCSRA) | 0x80)      # ADEN
 
     def timer0_ovf_isr(self) -> None:
+        self._timer0_ovf()
+        self.millis_changed.fire()      # simulation: wakes a loop() waiting for millis() to move
+
+    def _timer0_ovf(self) -> None:
+        # the body of ISR(TIMER0_OVF_vect) in wiring.c
         m = self.timer0_millis + MILLIS_INC
         f = self.timer0_fract + FRACT_INC
         if f >= FRACT_MAX:
@@ -118,7 +126,31 @@ class ArduinoCore:
         self.timer0_fract = f
         self.timer0_millis = m & 0xFFFFFFFF
         self.timer0_overflow_count = (self.timer0_overflow_count + 1) & 0xFFFFFFFF
-        self.millis_changed.fire()      # simulation: wakes a loop() waiting for millis() to move
+
+    # simulation: the ISR as a TickForm (the fast engine serves overflows whose loop() pass is idle)
+    def _millis_after(self, n: int) -> int:
+        """``timer0_millis`` after ``n`` more overflows (nothing changes)."""
+        m, f = self.timer0_millis, self.timer0_fract
+        for _ in range(n):
+            m, f = m + MILLIS_INC, f + FRACT_INC
+            if f >= FRACT_MAX:
+                f -= FRACT_MAX
+                m += 1
+        return m & 0xFFFFFFFF
+
+    def _overflows(self, n: int) -> None:
+        """What ``n`` runs of the ISR do; the signal is counted, its waiter serves an idle pass."""
+        for _ in range(n):
+            self._timer0_ovf()
+        self.millis_changed.count += n
+
+    def idle_pass(self, cycles: int, idle) -> IdlePass:
+        """Simulation: the :class:`IdlePass` of a ``loop()`` whose pass reads ``millis()`` only and,
+        while ``idle(millis)`` holds, does nothing else for ``cycles`` (the sketch's own rule). It
+        stands while no delay is owed and no register log watches SREG (``millis()`` reads and
+        writes it)."""
+        sreg = self.bus.peripheral_at(SREG)[0]
+        return IdlePass(cycles, idle, lambda: not self.debt_cycles and sreg.access_log is None)
 
     def millis(self) -> int:
         old = self._r(SREG)

@@ -111,6 +111,10 @@ class OpenRoverMcm:
         self.error = P.ERR_NONE
         self.pointer = 0
         self._stall_since = None
+        # simulation: a pass of loop() after which millis() is still short of the sample time only
+        # reads it (loop()'s first lines), so the fast engine may serve it (mcusim.engine.ticks)
+        self._idle_pass = self.core.idle_pass(
+            self.p["cycles_loop_idle"], lambda ms: (ms - self._last_ms) & 0xFFFFFFFF < self.p["sample_ms"])
         self.rtos.create_task("arduino", self.main(), priority=1)
 
     # --- main() of the Arduino core: init(); setup(); for (;;) loop(); ---------------------------
@@ -127,7 +131,7 @@ class OpenRoverMcm:
                 # an idle pass reads only millis(): the passes after it find nothing to do until
                 # Timer0's overflow ISR moves it (their cycles are this wait), so wait for that;
                 # an overflow during this pass means the very next pass sees it
-                await self.rtos.wait_signal(self.core.millis_changed, since=polled)
+                await self.rtos.wait_signal(self.core.millis_changed, since=polled, idle=self._idle_pass)
 
     def setup(self) -> None:
         self.timer1.initialize(50)                 # 50 µs: 20 kHz

@@ -63,6 +63,7 @@ these outlive the handler, so serving leaves them as the edge-by-edge run leaves
 from __future__ import annotations
 
 from ..kernel import PRIO_CPU, PRIO_PLANT
+from .ticks import tick_run
 
 
 class Route:
@@ -188,6 +189,8 @@ def serve_run(kernel, owner) -> bool:
     _note_busy(owner.cpus, busy)
     if _stranger_first(kernel, owner, busy):
         return False
+    ticks = []                  # timer overflows a counted run may serve (mcusim.engine.ticks)
+    plain = None                # the barrier of a run that serves none: the first of them
     head = kernel.first_queued()
     while head is not None:
         ev = head[3]
@@ -198,21 +201,36 @@ def serve_run(kernel, owner) -> bool:
             continue
         other = _stream_of(ev, cpus)
         if other is None:
-            break
+            tick = tick_run(ev, cpus) if not ends else None
+            if tick is None or any(t.cpu is tick.cpu for t in ticks):
+                break
+            ticks.append(tick)
+            if plain is None:
+                plain = (head[0], head[1])
+            absorbed.add(ev)
+            head = kernel.first_queued(absorbed)
+            continue
         streams.append(other)
         absorbed.add(ev)
         cpus.update(other.cpus)
         _note_busy(other.cpus, busy)
         head = kernel.first_queued(absorbed)
     barrier = None if head is None else (head[0], head[1])
+    if plain is None:
+        plain = barrier
     if barrier is not None and _doomed(streams, barrier):
         return False
     charged = {cpu: cpu.busy_ticks for cpu in busy.values()}
     last = {}       # busy CPU -> (return, plan index) of its last handler served
-    if ends or len(charged) > 1:
-        done = _plan(kernel, streams, barrier, ends, last)
+    if ends or len(charged) > 1 or (ticks and any(t.cpu in charged for t in ticks)):
+        done = _plan(kernel, streams, plain, ends, last)
     else:           # every handler served returns before the barrier, so before each busy task's end
-        done = _count(kernel, streams, barrier) or _plan(kernel, streams, barrier, None, last)
+        done = _count(kernel, streams, barrier, ticks)
+        if done:
+            for tick in ticks:
+                tick.commit()
+        else:
+            done = _plan(kernel, streams, plain, None, last)
     if done:
         # the handlers served on a busy task's CPU moved its end by their ticks: the busy time
         # they were charged (Route.serve, Route.charge). Edge by edge each end is queued again at
@@ -271,7 +289,7 @@ def _doomed(streams, barrier) -> bool:
     return False
 
 
-def _count(kernel, streams, barrier) -> bool:
+def _count(kernel, streams, barrier, ticks=()) -> bool:
     """A run without locating every crossing: where each stream's motor is in a chunk of PWM
     periods whose speed bounds keep its crossings further apart than a handler takes, a stream's
     crossings up to a tick are counted from the shaft angle there (the position its encoder's
@@ -284,6 +302,12 @@ def _count(kernel, streams, barrier) -> bool:
     if barrier is not None:     # a handler's return at (t, PRIO_CPU) must come before the barrier
         R = min(R, barrier[0] if PRIO_CPU < barrier[1] else barrier[0] - 1)
     hz = kernel.timebase.base_hz
+    while ticks:                # the timer overflows served on the way (their own window rules)
+        R0 = R
+        for tick in ticks:
+            R = tick.limit(R, streams, hz)
+        if R == R0:
+            break
     if sum(s.count_bound(R, hz) for s in streams) < COUNT_MIN:
         return False
     total = 0

@@ -109,6 +109,56 @@ class Crossings:
         self.K = K
         return abs(K - self.pos)
 
+    def tick_end(self, T: int, isr: int, pas: int, base_hz: int, queue: bool):
+        """For a run serving another handler on this stream's CPU (:mod:`mcusim.engine.ticks`),
+        requested at tick ``T`` (on a CPU clock edge), ``isr`` ticks from request to return, then
+        a task's pass of ``pas`` ticks: the tick by which both are over with this stream's edges
+        around them as edge by edge, or None where they interact in a way not worked out here.
+
+        From the shaft angle, as a count (θ monotone in a chunk, fast enough for its float values
+        to grow tick by tick; the counted run's spacing keeps two edges more than a handler and
+        this one apart). An edge whose handler returns before T, or that comes after the handler
+        (its request preempts the pass, which then ends later by its handler's ticks), does not
+        interact. With ``queue`` (a run of this stream alone) one edge in between is worked out as
+        the CPU queues it: one whose handler still runs at T delays the other handler to its
+        return; one whose request comes while the other runs waits for its return (a request at
+        T itself is left out: the lower vector would go first). Otherwise None."""
+        sp = None if self.span is None else self.span()
+        ra, rb = self.ra, self.rb
+        if sp is None or rb.clock is not ra.clock:
+            return None
+        clock, h = ra.clock, max(ra.ticks, rb.ticks)
+        if T + isr + h + pas + h >= sp[0]:
+            return None         # past the chunk: θ may not be monotone there
+        enc, state_at = self.enc, self.state_at
+        t0, pos = self.pending[0], self.pos
+        if sp[1] <= 1e-12 * (abs(state_at(T)[2]) + 1.0) * base_hz:
+            return None         # θ may gain less per tick than its float rounding
+
+        def at(t):              # the position after the crossings up to tick t
+            return pos if t < t0 else enc._k_of(state_at(t)[2])
+
+        a = served.last_tick_returning_by(clock, h, T - 1)
+        R = T + isr
+        pa, pr = at(a), at(R)
+        if pa != pr:
+            if not queue or abs(pr - pa) != 1:
+                return None
+            d = pr - pa
+            c, _ = self.locate(enc._guards_at(pa), max(a, t0 - 1))
+            if c is None or c > R:
+                return None
+            e, hc = clock.next_edge(c), self._route_into(pa + d, d).ticks
+            if e == T:
+                return None
+            # the handler that waits starts at the other's return; nothing else comes meanwhile
+            R = max(e + hc, T) + isr if e < T else R + hc
+            if at(R) != pr:
+                return None
+        # the pass: an edge in it preempts it and moves its end by its handler
+        n = abs(at(R + pas) - pr)
+        return None if n > 1 else R + pas + n * h
+
     def locate_next(self):
         """The first crossing after the window (tick, direction, guards) or None, as ``nxt``."""
         nt, firing = self.locate(self.enc._guards_at(self.K), self.t_max)

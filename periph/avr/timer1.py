@@ -70,6 +70,7 @@ from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import Net, Port
 
 from .timer1_steady import SteadyOutputs
+from .timer_served import ServedOverflows
 
 # flag / enable bits, the same positions in TIFRn and TIMSKn
 TOV, OCFA, OCFB, ICF = 1 << 0, 1 << 1, 1 << 2, 1 << 5
@@ -100,7 +101,7 @@ def com_behaviour(kind: str, top, ch: str, com: int):
     return "pwm", (0 if com == 2 else 1)
 
 
-class AvrTimer(SteadyOutputs, Peripheral):
+class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
     """Event-driven engine shared by Timer0 and Timer1.  Subclasses give registers and names."""
 
     BUS_WIDTH = 1

@@ -1,0 +1,128 @@
+"""Timer0's overflows and the idle loop() passes they wake, served in closed form (mcusim.engine.ticks).
+
+Edge by edge, every 1.024 ms the overflow interrupt advances millis() and wakes loop(), whose pass
+reads millis(), finds the sample time not reached and waits again. The fast engine serves such an
+overflow inside a counted run of encoder edges: the states it leaves are the edge-by-edge ones at
+every observation point, the passes that found work run at the same ticks, and only passes that
+found nothing are skipped. Encoder edges next to an overflow are queued as the CPU queues them
+(an edge whose handler still runs delays the overflow's; one that comes during it waits)."""
+
+from engine_compare import differences
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_served_edges import _close, run_both, served, snapshot
+
+import mcusim
+from mcusim.engine import ticks
+
+
+def _passes(sim):
+    """``sim`` and the list of (tick, found work) of each loop() pass of its pro-mini's sketch."""
+    fw = sim.firmware
+    log, loop = [], fw.loop
+
+    async def logged():
+        worked = await loop()
+        log.append((sim.kernel.now, worked))
+        return worked
+    fw.loop = logged
+    return sim, log
+
+
+def _served_ticks(monkeypatch):
+    """Count the overflows the fast engine serves (TickRun.commit)."""
+    count = [0]
+    commit = ticks.TickRun.commit
+
+    def counting(self):
+        count[0] += self.n
+        commit(self)
+    monkeypatch.setattr(ticks.TickRun, "commit", counting)
+    return count
+
+
+@settings(max_examples=6, deadline=None)
+@given(v=st.floats(-40.0, 40.0), sample_ms=st.sampled_from([1, 2, 10, 25]), idle=st.integers(1, 400),
+       load=st.floats(-10.0, 10.0))
+def test_served_overflows_leave_every_state_and_every_pass_that_found_work_as_edge_by_edge(v, sample_ms,
+                                                                                           idle, load):
+    sets = {"velocity": v, "firmware.sample_ms": sample_ms, "firmware.cycles_loop_idle": idle,
+            "motor.load_torque": load}
+    logs = {}
+
+    def build(engine):
+        sim, logs[engine] = _passes(mcusim.load("pro-mini", overrides=sets, engine=engine))
+        return sim
+    run_both(build, 0.15, 0.0071)
+    ref, fast = logs["reference"], logs["fast"]
+    assert [p for p in ref if p[1]] == [p for p in fast if p[1]]          # every working pass
+    assert set(fast) <= set(ref) and all(not worked for p, worked in set(ref) - set(fast))
+
+
+def test_most_overflows_of_the_bench_are_served_edges_next_to_them_queued_as_edge_by_edge(monkeypatch):
+    """At 20 rpm an encoder edge lies within a handler's reach of an overflow about half the time:
+    those are queued (the encoder's handler first if it is running, else after the overflow's), so
+    nearly every overflow is served, and every state agrees with the reference at 2 ms steps."""
+    count = _served_ticks(monkeypatch)
+    fast = run_both(lambda e: mcusim.load("pro-mini", overrides={"velocity": 20}, engine=e), 0.2, 0.002)
+    overflows = fast.mcu.cpu.isr_count[16]
+    assert count[0] > 0.8 * overflows > 150
+    assert served(fast) > count[0]
+
+
+def test_a_register_log_of_sreg_runs_every_pass(tmp_path, monkeypatch):
+    """An idle pass reads and writes SREG (millis(): cli, then SREG restored): while a register log
+    watches it, every pass runs; a log of other peripherals leaves them served, and the two
+    engines' logs and summaries agree either way."""
+    count = _served_ticks(monkeypatch)
+    argv = ["pro-mini", "--duration", "40ms", "--set", "velocity=20"]
+    assert differences(tmp_path / "cpu", [*argv, "--register-log-filter", "CPU"], vcd=False) == []
+    assert count[0] == 0
+    assert differences(tmp_path / "timers", [*argv, "--register-log-filter", "TIMER0,TIMER1,EXINT"], vcd=False) == []
+    assert count[0] > 20
+
+
+def test_a_handler_bound_over_the_overflow_vector_is_run_not_the_closed_form(monkeypatch):
+    """The closed form stands for the core's own ISR only: bound to another handler, the vector runs it."""
+    count = _served_ticks(monkeypatch)
+    sim = mcusim.load("pro-mini", overrides={"velocity": 20})
+    calls = []
+    sim.mcu.cpu.vector(16, lambda: calls.append(sim.kernel.now), cost=80)
+    sim.run(seconds=0.05)
+    assert count[0] == 0 and len(calls) == 48           # 50 ms / 1.024 ms
+
+
+def _overflow_ticks(sets, n):
+    """The ticks of the first ``n`` Timer0 overflows of a pro-mini run (its clock runs free from
+    init(): the first one, taken with nothing else running, and every 256 × 64 cycles on)."""
+    sim = mcusim.load("pro-mini", overrides=sets, engine="reference")
+    cpu = sim.mcu.cpu
+    seen, (handler, cost) = [], cpu.vectors[16]
+    cpu.vector(16, lambda: (seen.append(sim.kernel.now), handler()), cost=cost)
+    sim.run(seconds=0.002)
+    first = seen[0] - cpu.entry_latency * cpu.clock.period
+    return [first + k * 256 * 64 * cpu.clock.period for k in range(n)]
+
+
+@settings(max_examples=8, deadline=None)
+@given(v=st.sampled_from([8.0, 20.0, -30.0, 45.0]), idle=st.sampled_from([40, 200]),
+       offsets=st.lists(st.tuples(st.booleans(), st.integers(-320, 720), st.integers(0, 170)),
+                        min_size=60, max_size=60))
+def test_runs_stopped_inside_an_overflows_reach_see_the_edge_by_edge_timeline(v, idle, offsets):
+    """Stop both engines near each overflow, from before the encoder handler that would delay it
+    to after the (possibly delayed) idle pass, half of the stops within an encoder handler's
+    length after the pass's own end (an edge in the pass moves it): at every stop the task's
+    state, the CPU's queued ends and every register agree. A run that serves an overflow whose
+    handler or pass would still be in flight at the stop (its end worked out too early) shows
+    here as a task running in one engine and blocked in the other."""
+    sets = {"velocity": v, "firmware.cycles_loop_idle": idle}
+    pass_end = 4 + 80 + idle        # entry latency, the handler's cycles, the pass (1 tick = 1 cycle)
+    stops = [t + (pass_end + near if at_end else off)
+             for t, (at_end, off, near) in zip(_overflow_ticks(sets, 61)[1:], offsets)]
+    ref, fast = (mcusim.load("pro-mini", overrides=sets, engine=e) for e in ("reference", "fast"))
+    for t in stops:
+        ref.run(until_tick=t)
+        fast.run(until_tick=t)
+        a, b = snapshot(ref), snapshot(fast)
+        bad = [k for k in a if not _close(a[k], b[k])]
+        assert not bad, (t, bad, [a[k] for k in bad][:2], [b[k] for k in bad][:2])
