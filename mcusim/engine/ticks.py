@@ -74,11 +74,10 @@ class TickRun:
         T = self.K * self.clock_ticks
         step = self.L * self.clock_ticks
         peek, idle = self.form.peek, self.idle.idle
-        queue = len(streams) == 1
         while T <= R:
             if stream is None or not idle(peek(n + 1)):
                 break
-            end = stream.tick_end(T, self.isr_ticks, self.pass_ticks, base_hz, queue)
+            end = stream.tick_end(T, self.isr_ticks, self.pass_ticks, base_hz)
             if end is None or end > R:
                 break
             n += 1

@@ -109,7 +109,7 @@ class Crossings:
         self.K = K
         return abs(K - self.pos)
 
-    def tick_end(self, T: int, isr: int, pas: int, base_hz: int, queue: bool):
+    def tick_end(self, T: int, isr: int, pas: int, base_hz: int):
         """For a run serving another handler on this stream's CPU (:mod:`mcusim.engine.ticks`),
         requested at tick ``T`` (on a CPU clock edge), ``isr`` ticks from request to return, then
         a task's pass of ``pas`` ticks: the tick by which both are over with this stream's edges
@@ -119,10 +119,12 @@ class Crossings:
         to grow tick by tick; the counted run's spacing keeps two edges more than a handler and
         this one apart). An edge whose handler returns before T, or that comes after the handler
         (its request preempts the pass, which then ends later by its handler's ticks), does not
-        interact. With ``queue`` (a run of this stream alone) one edge in between is worked out as
-        the CPU queues it: one whose handler still runs at T delays the other handler to its
-        return; one whose request comes while the other runs waits for its return (a request at
-        T itself is left out: the lower vector would go first). Otherwise None."""
+        interact. One edge in between is worked out as the CPU queues it: one whose handler still
+        runs at T delays the other handler to its return; one whose request comes while the other
+        runs waits for its return (a request at T itself is left out: the lower vector would go
+        first). A handler delayed so may return after another stream's first crossing left out
+        of the run: that crossing is on another CPU, which the delay does not reach. Otherwise
+        None."""
         sp = None if self.span is None else self.span()
         ra, rb = self.ra, self.rb
         if sp is None or rb.clock is not ra.clock:
@@ -142,7 +144,7 @@ class Crossings:
         R = T + isr
         pa, pr = at(a), at(R)
         if pa != pr:
-            if not queue or abs(pr - pa) != 1:
+            if abs(pr - pa) != 1:
                 return None
             d = pr - pa
             c, _ = self.locate(enc._guards_at(pa), max(a, t0 - 1))
