@@ -244,8 +244,9 @@ def serve_run(kernel, owner) -> bool:
 def _stranger_first(kernel, owner, busy) -> bool:
     """True where the first queued event that no run could absorb comes before the owner's first
     handler could return, settled without making any other stream (:func:`_doomed` after them).
-    Passed over: the motors' events (a crossing may join the run) and the ``busy`` tasks' ends of
-    the owner's CPUs. What is left bounds the owner's first handler: either it is the barrier
+    Passed over: the motors' events (a crossing may join the run), the ``busy`` tasks' ends of
+    the owner's CPUs and the timer overflows a run may serve (:mod:`.ticks`: the owner's handler
+    may delay one, or another module's stream joins the run first). What is left bounds the owner's first handler: either it is the barrier
     (or comes after it), or it is the busy end of another module whose stream joins the run,
     before which :func:`_before_ends` wants every other CPU's handlers returned."""
     skip = set()
@@ -254,7 +255,8 @@ def _stranger_first(kernel, owner, busy) -> bool:
         if head is None:
             return False
         ev = head[3]
-        if ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream"):
+        if (ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream")
+                and tick_run(ev) is None):
             return (owner.first_return(), PRIO_CPU) >= (head[0], head[1])
         skip.add(ev)
 

@@ -32,9 +32,9 @@ cleared by the vector's entry and the timer's next event planned after the last 
 from __future__ import annotations
 
 
-def tick_run(ev, cpus):
-    """The :class:`TickRun` of the queued event ``ev`` if it is a timer overflow of one of
-    ``cpus`` that can be served now, else None."""
+def tick_run(ev, cpus=None):
+    """The :class:`TickRun` of the queued event ``ev`` if it is a timer overflow (of one of
+    ``cpus``, if given) that can be served now, else None."""
     owner = getattr(ev.fn, "__self__", None)
     served_overflow = getattr(owner, "served_overflow", None)
     if served_overflow is None:
@@ -43,7 +43,7 @@ def tick_run(ev, cpus):
     if got is None:
         return None
     cpu, vector, K, L, clock_ticks = got
-    if cpu not in cpus:
+    if cpus is not None and cpu not in cpus:
         return None
     hit = cpu.served_tick(vector)
     if hit is None:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 
 from ..engine import served
+from ..engine.ticks import tick_run
 from ..errors import ConfigError
 from ..kernel import PRIO_PLANT
 from ..signals import Net
@@ -355,7 +356,8 @@ class QuadratureEncoder:
             # the crossing due now: its handler takes at least entry latency + the cheaper of the
             # two handlers as bound now; if an event of no motor comes before that return (a
             # motor's may be a crossing to absorb, a busy task's end is moved by the handler),
-            # the route lookups would be in vain
+            # the route lookups would be in vain (a timer overflow a run may serve is passed over:
+            # this handler may delay it)
             cpu, va, vb = hint
             ha, hb = cpu.vectors.get(va), cpu.vectors.get(vb)
             if ha is not None and hb is not None:
@@ -364,7 +366,7 @@ class QuadratureEncoder:
                 if (head is not None and head[0] < tick + ticks
                         and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
                     task = cpu.busy_task()
-                    if task is None or head[3] is not task.end_ev:
+                    if (task is None or head[3] is not task.end_ev) and tick_run(head[3]) is None:
                         return None
         ra, rb = served.route(self.a), served.route(self.b)
         if ra is None or rb is None:
