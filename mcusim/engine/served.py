@@ -304,12 +304,13 @@ def _count(kernel, streams, barrier, ticks=()) -> bool:
     if barrier is not None:     # a handler's return at (t, PRIO_CPU) must come before the barrier
         R = min(R, barrier[0] if PRIO_CPU < barrier[1] else barrier[0] - 1)
     hz = kernel.timebase.base_hz
-    while ticks:                # the timer overflows served on the way (their own window rules)
-        R0 = R
+    # the timer overflows served on the way (their own window rules); where one timer's stop
+    # lowers the window below the end of another's last one served, that one is done again
+    for tick in ticks:
+        R = tick.limit(R, streams, hz)
+    while any(tick.last_end > R for tick in ticks):
         for tick in ticks:
             R = tick.limit(R, streams, hz)
-        if R == R0:
-            break
     if sum(s.count_bound(R, hz) for s in streams) < COUNT_MIN:
         return False
     total = 0

@@ -56,8 +56,8 @@ class TickRun:
     """The overflows of one timer that a counted run serves: at clocks K, K + L, ... (the first
     ``n`` of them, set by :meth:`limit`)."""
 
-    __slots__ = ("K", "L", "clock_ticks", "cpu", "form", "idle", "isr_ticks", "n", "pass_ticks", "timer",
-                 "vector")
+    __slots__ = ("K", "L", "clock_ticks", "cpu", "form", "idle", "isr_ticks", "last_end", "n", "pass_ticks",
+                 "timer", "vector")
 
     def __init__(self, timer, cpu, vector, K, L, clock_ticks, isr_ticks, form, idle):
         self.timer, self.cpu, self.vector = timer, cpu, vector
@@ -65,12 +65,13 @@ class TickRun:
         self.isr_ticks, self.form, self.idle = isr_ticks, form, idle
         self.pass_ticks = cpu.clock.cycles(idle.cycles)
         self.n = 0
+        self.last_end = -1      # where the last overflow served is over (its pass's end)
 
     def limit(self, R: int, streams, base_hz: int) -> int:
         """Serve the overflows that fit a window whose handlers return by tick ``R`` (module
         docstring); returns R, lowered to before the first overflow that is not served."""
         stream = next((s for s in streams if self.cpu in s.cpus), None)
-        n = 0
+        n, last = 0, -1
         T = self.K * self.clock_ticks
         step = self.L * self.clock_ticks
         peek, idle = self.form.peek, self.idle.idle
@@ -80,9 +81,9 @@ class TickRun:
             end = stream.tick_end(T, self.isr_ticks, self.pass_ticks, base_hz)
             if end is None or end > R:
                 break
-            n += 1
+            n, last = n + 1, end
             T += step
-        self.n = n
+        self.n, self.last_end = n, last
         return min(R, T - 1)
 
     def commit(self) -> None:

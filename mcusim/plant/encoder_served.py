@@ -134,15 +134,19 @@ class Crossings:
             return None         # past the chunk: θ may not be monotone there
         enc, state_at = self.enc, self.state_at
         t0, pos = self.pending[0], self.pos
-        if sp[1] <= 1e-12 * (abs(state_at(T)[2]) + 1.0) * base_hz:
+        R = T + isr
+        th = state_at(R + pas)[2]
+        if sp[1] <= 1e-12 * (abs(th) + 1.0) * base_hz:
             return None         # θ may gain less per tick than its float rounding
 
         def at(t):              # the position after the crossings up to tick t
             return pos if t < t0 else enc._k_of(state_at(t)[2])
 
         a = served.last_tick_returning_by(clock, h, T - 1)
-        R = T + isr
-        pa, pr = at(a), at(R)
+        pa = at(a)
+        if pa == enc._k_of(th):
+            return R + pas      # no edge from before T to the pass's end
+        pr = at(R)
         if pa != pr:
             if abs(pr - pa) != 1:
                 return None
