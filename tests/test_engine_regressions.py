@@ -228,3 +228,17 @@ def test_a_constant_pwm_output_that_becomes_a_waveform_at_a_wrap_changes_once():
     k.run_until(k.now + 100 * rig.P)
     assert len(told) == 1, told
     assert told[0][1] == 1 and told[0][2] is not None
+
+
+@pytest.mark.parametrize("board, motor", [("elementall", "mcm1.motor"), ("rover-diff", "left.motor")])
+def test_a_hand_turn_on_a_battery_fed_wheel_closes_the_supply_account_of_the_segment_it_ends(tmp_path, board,
+                                                                                          motor):
+    """A hand turn re-sets the shaft speed every millisecond, on the battery's own step ticks. The
+    fast engine rebuilds the motor once at the end of such a tick; the battery's step in between
+    asks the bridge for the charge drawn, which it took from the segment that just ended (it
+    stopped the run with "supply accounting lost a motor segment")."""
+    from engine_compare import differences
+    sc = tmp_path / "turn.toml"
+    sc.write_text(f'[scenario]\nboard = "{board}"\nduration = "6ms"\n\n[[at]]\ntime = "0s"\n'
+                  f'turn = {{ motor = "{motor}", angle = 0.5, over = "30ms" }}\n')
+    assert differences(tmp_path, [board, "--scenario", str(sc)]) == []

@@ -285,9 +285,16 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
             self._cacc = (now,) + acc[1:]
         elif seg is not None and seg[3] and now > seg[0]:
             m = self.motor
-            if seg[0] < m._t0:
-                raise McusimError(f"{self.name}: supply accounting lost a motor segment")
-            i1, _, th1 = m.state_at(now)
+            if seg[0] >= m._t0:
+                i1, _, th1 = m.state_at(now)
+            else:
+                # the motor was re-based at now (a state jump, a new input) and its rebuild, which
+                # closes this account, waits for the end of the tick (fast engine): the account
+                # ends where the segment it was opened for ends, by that segment's closed form
+                prev = m._prev
+                if m._t0 != now or prev is None or prev[0] > seg[0]:
+                    raise McusimError(f"{self.name}: supply accounting lost a motor segment")
+                i1, _, th1 = m._at(prev[1], now - prev[0])
             self._close(seg, now, i1, th1)
             self._seg = (now, i1, th1) + seg[3:]
         q, self._q = self._q, 0.0
