@@ -63,8 +63,11 @@ def read_profile(board: str) -> tuple[dict, str]:
 
 def parse_value(text: str):
     """A ``--set`` value: true/false, an int (also 0x.., 0b..), a float, a list (``8,9`` or ``[8,9]``),
-    else the string itself."""
-    low = text.strip().lower()
+    else the string itself; in quotes (``"off"``, ``'12'``) always the string inside them."""
+    stripped = text.strip()
+    if len(stripped) >= 2 and stripped[0] == stripped[-1] and stripped[0] in "\"'":
+        return stripped[1:-1]
+    low = stripped.lower()
     if low in ("true", "on", "yes"):
         return True
     if low in ("false", "off", "no"):

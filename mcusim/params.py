@@ -120,6 +120,12 @@ class Param:
 
     def check(self, value, what: str):
         """``value`` converted and checked, or ConfigError ``<what> = <value>: must be ...``."""
+        if self.kind is str and isinstance(value, bool) and self.choices is not None:
+            # ``--set ibt2.cl_action=off`` reads off as false: the one choice spelled as such a word
+            words = _TRUE if value else _FALSE
+            hits = [c for c in self.choices if isinstance(c, str) and c.lower() in words]
+            if len(hits) == 1:
+                value = hits[0]
         out = coerce(value, self.kind, what)
         if self.choices is not None:
             if out not in self.choices:

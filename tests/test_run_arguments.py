@@ -76,3 +76,16 @@ def test_a_run_stopped_before_a_task_took_its_first_step_leaves_no_warning_eithe
             "def stop():\n    n[0] += 1\n    return n[0] >= 1\nsim.run(seconds='1ms', stop=stop)\n")
     out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr
+
+
+@pytest.mark.parametrize("word", ["off", "OFF", "no", "false"])
+def test_a_set_word_that_reads_as_false_is_the_one_choice_spelled_so(word):
+    # --set ibt2.cl_action=off was refused with "expected a string": off had been read as false
+    sim = mcusim.load("pro-mini", overrides={"ibt2.cl_action": word})
+    assert sim.part("ibt2").cl_action == "off"
+
+
+@given(text=st.text(alphabet="abcdefxyz0123456789.,-[] ", max_size=12), quote=st.sampled_from(["'", '"']))
+def test_a_quoted_set_value_is_the_text_inside_the_quotes(text, quote):
+    from mcusim.board import parse_value
+    assert parse_value(f"{quote}{text}{quote}") == text
