@@ -7,9 +7,12 @@ every observation point, the passes that found work run at the same ticks, and o
 found nothing are skipped. Encoder edges next to an overflow are queued as the CPU queues them
 (an edge whose handler still runs delays the overflow's; one that comes during it waits)."""
 
+import contextlib
+
 from engine_compare import differences
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from mcusim.fw.openrover_mcm import sketch
 from test_served_edges import _close, run_both, served, snapshot
 
 import mcusim
@@ -92,40 +95,90 @@ def test_a_handler_bound_over_the_overflow_vector_is_run_not_the_closed_form(mon
     assert count[0] == 0 and len(calls) == 48           # 50 ms / 1.024 ms
 
 
-def _overflow_ticks(sets, n):
+def _overflow_ticks(sets, n, prescale=64):
     """The ticks of the first ``n`` Timer0 overflows of a pro-mini run (its clock runs free from
-    init(): the first one, taken with nothing else running, and every 256 × 64 cycles on)."""
+    init(): the first one, taken with nothing else running, and every 256 × prescale cycles on)."""
     sim = mcusim.load("pro-mini", overrides=sets, engine="reference")
     cpu = sim.mcu.cpu
     seen, (handler, cost) = [], cpu.vectors[16]
     cpu.vector(16, lambda: (seen.append(sim.kernel.now), handler()), cost=cost)
     sim.run(seconds=0.002)
     first = seen[0] - cpu.entry_latency * cpu.clock.period
-    return [first + k * 256 * 64 * cpu.clock.period for k in range(n)]
+    return [first + k * 256 * prescale * cpu.clock.period for k in range(n)]
 
 
-@settings(max_examples=8, deadline=None)
-@given(v=st.sampled_from([8.0, 20.0, -30.0, 45.0]), idle=st.sampled_from([40, 200]),
-       offsets=st.lists(st.tuples(st.booleans(), st.integers(-320, 720), st.integers(0, 170)),
-                        min_size=60, max_size=60))
-def test_runs_stopped_inside_an_overflows_reach_see_the_edge_by_edge_timeline(v, idle, offsets):
-    """Stop both engines near each overflow, from before the encoder handler that would delay it
-    to after the (possibly delayed) idle pass, half of the stops within an encoder handler's
-    length after the pass's own end (an edge in the pass moves it): at every stop the task's
-    state, the CPU's queued ends and every register agree. A run that serves an overflow whose
-    handler or pass would still be in flight at the stop (its end worked out too early) shows
-    here as a task running in one engine and blocked in the other."""
-    sets = {"velocity": v, "firmware.cycles_loop_idle": idle}
-    pass_end = 4 + 80 + idle        # entry latency, the handler's cycles, the pass (1 tick = 1 cycle)
-    stops = [t + (pass_end + near if at_end else off)
-             for t, (at_end, off, near) in zip(_overflow_ticks(sets, 61)[1:], offsets)]
-    ref, fast = (mcusim.load("pro-mini", overrides=sets, engine=e) for e in ("reference", "fast"))
+@contextlib.contextmanager
+def _timer0_prescaler(prescale):
+    """The sketch runs Timer0 at clk/``prescale`` (``TCCR0B = CS0``: the faster-PWM idiom for pins
+    5 and 6; millis() then runs fast, as on the chip)."""
+    setup = sketch.OpenRoverMcm.setup
+
+    def faster(self):
+        setup(self)
+        self.core._w(0x45, {64: 3, 8: 2}[prescale])      # TCCR0B: CS0
+    sketch.OpenRoverMcm.setup = faster
+    try:
+        yield
+    finally:
+        sketch.OpenRoverMcm.setup = setup
+
+
+def _compare_at(stops, build):
+    ref, fast = build("reference"), build("fast")
     for t in stops:
         ref.run(until_tick=t)
         fast.run(until_tick=t)
         a, b = snapshot(ref), snapshot(fast)
         bad = [k for k in a if not _close(a[k], b[k])]
         assert not bad, (t, bad, [a[k] for k in bad][:2], [b[k] for k in bad][:2])
+
+
+@settings(max_examples=10, deadline=None)
+# the review's cases: a pass whose edges carry it into the next overflow (Timer0 at clk/8), and a
+# second edge in the stretch the first one adds to a pass
+@example(v=3.0, idle=1700, sample_ms=100, prescale=8, gap=251, offsets=[(True, 0, 160)] * 60)
+@example(v=14.0, idle=1000, sample_ms=10, prescale=64, gap=1, offsets=[(True, 0, 160)] * 60)
+@given(v=st.sampled_from([3.0, 8.0, 14.0, 20.0, -30.0, 45.0]), idle=st.sampled_from([40, 200, 1000, 1700]),
+       sample_ms=st.sampled_from([10, 100]), prescale=st.sampled_from([64, 8]), gap=st.integers(1, 5),
+       offsets=st.lists(st.tuples(st.booleans(), st.integers(-320, 720), st.integers(0, 340)),
+                        min_size=60, max_size=60))
+def test_runs_stopped_inside_an_overflows_reach_see_the_edge_by_edge_timeline(v, idle, sample_ms, prescale, gap,
+                                                                             offsets):
+    """Stop both engines near each overflow, from before the encoder handler that would delay it
+    to after the (possibly delayed) idle pass, half of the stops within two encoder handlers'
+    length after the pass's own end (each edge in the pass moves it, and the stretch it adds may
+    hold the next one): at every stop the task's state, the CPU's queued ends and every register
+    agree. A run that serves an overflow whose handler or pass would still be in flight at the
+    stop (its end worked out too early) shows here as a task running in one engine and blocked in
+    the other. With Timer0 at clk/8 (2048 cycles between overflows) a long idle pass and the
+    edges that preempt it reach the next overflow, which then finds the task running: that one
+    is left to the events. Stops come near every ``gap``-th overflow, so that runs span several."""
+    sets = {"velocity": v, "firmware.cycles_loop_idle": idle, "firmware.sample_ms": sample_ms}
+    pass_end = 4 + 80 + idle        # entry latency, the handler's cycles, the pass (1 tick = 1 cycle)
+    n = 60 * 64 // prescale         # the overflows of the first 61 ms
+    with _timer0_prescaler(prescale):
+        stops = [t + (pass_end + near if at_end else off)
+                 for i, t in enumerate(_overflow_ticks(sets, n + 1, prescale)[1:]) if (i + 1) % gap == 0
+                 for at_end, off, near in [offsets[i % len(offsets)]]]
+        _compare_at(sorted(stops), lambda e: mcusim.load("pro-mini", overrides=sets, engine=e))
+
+
+def test_the_timer0_flags_stored_after_an_overflow_delayed_by_an_encoder_handler_are_the_reference_ones():
+    """Where an encoder handler delays an overflow's, its vector entry falls timer clocks after the
+    overflow, and the entry brings the flags up to that clock: a compare flag the firmware cleared
+    is set again there, in both engines (the stored TIFR0, compared here every 3.7 ms)."""
+    loop = sketch.OpenRoverMcm.loop
+
+    async def clearing(self):
+        worked = await loop(self)
+        if worked:
+            self.core._w(0x35, 0x06)     # TIFR0: clear OCF0A and OCF0B (write 1 to clear)
+        return worked
+    sketch.OpenRoverMcm.loop = clearing
+    try:
+        run_both(lambda e: mcusim.load("pro-mini", overrides={"velocity": 20}, engine=e), 0.3, 0.0037)
+    finally:
+        sketch.OpenRoverMcm.loop = loop
 
 
 @settings(max_examples=2, deadline=None)

@@ -15,7 +15,8 @@ overflows of its CPUs in its stride (:class:`TickRun`): the run goes on past an 
 * the pass after it is idle: ``idle(millis)`` holds for the value the handler leaves;
 * the handler and the pass end within the run's window: the pass ends at
   E = T + entry latency + handler cycles + pass cycles, and E ≤ R, the last tick a served
-  handler may return at;
+  handler may return at; and before the next overflow (which would otherwise find the task
+  running, not waiting);
 * no encoder edge of that CPU interacts: none whose handler would still run at T (it would delay
   the overflow's) and none from then to E (its request would wait for the overflow's handler, or
   preempt the pass). Checked from the shaft angle like a count: the encoder's position at the
@@ -49,20 +50,21 @@ def tick_run(ev, cpus=None):
     if hit is None:
         return None
     entry, cost, form, idle = hit
-    return TickRun(owner, cpu, vector, K, L, clock_ticks, entry + cost, form, idle)
+    return TickRun(owner, cpu, vector, K, L, clock_ticks, entry, entry + cost, form, idle)
 
 
 class TickRun:
     """The overflows of one timer that a counted run serves: at clocks K, K + L, ... (the first
     ``n`` of them, set by :meth:`limit`)."""
 
-    __slots__ = ("K", "L", "clock_ticks", "cpu", "form", "idle", "isr_ticks", "last_end", "n", "pass_ticks",
-                 "timer", "vector")
+    __slots__ = ("K", "L", "clock_ticks", "cpu", "entry", "form", "idle", "isr_ticks", "last_end", "n",
+                 "pass_ticks", "taken", "timer", "vector")
 
-    def __init__(self, timer, cpu, vector, K, L, clock_ticks, isr_ticks, form, idle):
+    def __init__(self, timer, cpu, vector, K, L, clock_ticks, entry, isr_ticks, form, idle):
         self.timer, self.cpu, self.vector = timer, cpu, vector
         self.K, self.L, self.clock_ticks = K, L, clock_ticks
-        self.isr_ticks, self.form, self.idle = isr_ticks, form, idle
+        self.entry, self.isr_ticks, self.form, self.idle = entry, isr_ticks, form, idle
+        self.taken = None       # the tick the last overflow served is taken at (its handler's request)
         self.pass_ticks = cpu.clock.cycles(idle.cycles)
         self.n = 0
         self.last_end = -1      # where the last overflow served is over (its pass's end)
@@ -71,19 +73,19 @@ class TickRun:
         """Serve the overflows that fit a window whose handlers return by tick ``R`` (module
         docstring); returns R, lowered to before the first overflow that is not served."""
         stream = next((s for s in streams if self.cpu in s.cpus), None)
-        n, last = 0, -1
+        n, last, taken = 0, -1, None
         T = self.K * self.clock_ticks
         step = self.L * self.clock_ticks
         peek, idle = self.form.peek, self.idle.idle
         while T <= R:
-            if stream is None or not idle(peek(n + 1)):
+            if stream is None or not idle(peek(n + 1)) or last >= T:
+                break           # (the pass before still runs at this overflow: it would see it)
+            got = stream.tick_end(T, self.isr_ticks, self.pass_ticks, base_hz)
+            if got is None or got[1] > R:
                 break
-            end = stream.tick_end(T, self.isr_ticks, self.pass_ticks, base_hz)
-            if end is None or end > R:
-                break
-            n, last = n + 1, end
+            n, (taken, last) = n + 1, got
             T += step
-        self.n, self.last_end = n, last
+        self.n, self.last_end, self.taken = n, last, taken
         return min(R, T - 1)
 
     def commit(self) -> None:
@@ -96,4 +98,6 @@ class TickRun:
         cpu.isr_count[v] = cpu.isr_count.get(v, 0) + n
         cpu.busy_ticks += n * (self.isr_ticks + self.pass_ticks)
         cpu.served_isrs += n
-        self.timer.commit_overflows(self.K + (n - 1) * self.L)
+        # the last one's vector entry syncs the timer's flags up to its own clock (later than the
+        # overflow's where an encoder handler delayed it, or at a fast prescaler)
+        self.timer.commit_overflows(self.K + (n - 1) * self.L, (self.taken + self.entry) // self.clock_ticks)

@@ -112,8 +112,9 @@ class Crossings:
     def tick_end(self, T: int, isr: int, pas: int, base_hz: int):
         """For a run serving another handler on this stream's CPU (:mod:`mcusim.engine.ticks`),
         requested at tick ``T`` (on a CPU clock edge), ``isr`` ticks from request to return, then
-        a task's pass of ``pas`` ticks: the tick by which both are over with this stream's edges
-        around them as edge by edge, or None where they interact in a way not worked out here.
+        a task's pass of ``pas`` ticks: (the tick the handler is taken at, the tick by which the
+        pass is over) with this stream's edges around them as edge by edge, or None where they
+        interact in a way not worked out here.
 
         From the shaft angle, as a count (θ monotone in a chunk, fast enough for its float values
         to grow tick by tick; the counted run's spacing keeps two edges more than a handler and
@@ -145,7 +146,7 @@ class Crossings:
         a = served.last_tick_returning_by(clock, h, T - 1)
         pa = at(a)
         if pa == enc._k_of(th):
-            return R + pas      # no edge from before T to the pass's end
+            return T, R + pas   # no edge from before T to the pass's end
         pr = at(R)
         if pa != pr:
             if abs(pr - pa) != 1:
@@ -158,12 +159,23 @@ class Crossings:
             if e == T:
                 return None
             # the handler that waits starts at the other's return; nothing else comes meanwhile
-            R = max(e + hc, T) + isr if e < T else R + hc
+            if e < T:
+                T = max(e + hc, T)
+                R = T + isr
+            else:
+                R += hc
             if at(R) != pr:
                 return None
-        # the pass: an edge in it preempts it and moves its end by its handler
-        n = abs(at(R + pas) - pr)
-        return None if n > 1 else R + pas + n * h
+        # the pass: an edge in it preempts it and moves its end by its handler (the costlier one:
+        # the end comes no earlier), so the stretch that adds may hold another edge
+        n = 0
+        while True:
+            m = abs(at(R + pas + n * h) - pr)
+            if m == n:
+                return T, R + pas + n * h
+            if m > 8:
+                return None
+            n = m
 
     def locate_next(self):
         """The first crossing after the window (tick, direction, guards) or None, as ``nxt``."""

@@ -34,17 +34,19 @@ class ServedOverflows:
             return None
         return self.irq.cpu, self.vectors["ovf"], K, self._L, self._N * self._P
 
-    def commit_overflows(self, K: int) -> None:
-        """The overflows up to clock ``K`` were served: each one's vector entry cleared TOVn at its
-        clock (entry latency < the prescaler: the entry falls in that clock). The compare flags
-        are set by counting as ever (sticky: set once, they stay), the flags are known up to K,
-        and the next event is planned from K."""
+    def commit_overflows(self, K: int, k_entry: int) -> None:
+        """The overflows up to clock ``K`` were served, the last one's vector entered in clock
+        ``k_entry`` (≥ K: an encoder handler may have delayed it, and a fast prescaler puts the
+        entry latency past K). As that entry does (``_entry_clear``), the flags are brought up to
+        k_entry (the compare flags set by counting, sticky), TOVn is cleared, and the next event is
+        planned from there (the next overflow is a whole cycle after K)."""
+        k = max(K, k_entry)
         F = self.value[self.TIFR]
         for bit in (OCFA, OCFB):
             if not F & bit:
                 Kb = self._flag_clock(self._ks, bit)
-                if Kb is not None and Kb <= K:
+                if Kb is not None and Kb <= k:
                     F |= bit
         self.value[self.TIFR] = F
-        self._ks = K
-        self._plan(K)
+        self._ks = k
+        self._plan(k)
