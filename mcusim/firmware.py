@@ -214,20 +214,34 @@ class Cpu:
         else:
             self.tick_forms[irqn] = form
 
-    def served_tick(self, irqn: int):
-        """(entry ticks, handler ticks, form, pass ticks) when a request of ``irqn`` raised now would
-        be taken at once and be all the CPU does until its handler returns (as :meth:`served`,
-        with no task running: all are blocked), its handler has a :class:`TickForm` that stands,
-        and the one task its signal wakes serves an :class:`IdlePass` (pass ticks: its cycles).
-        Else None."""
-        form = self.tick_forms.get(irqn)
+    def _taken_at_once(self, forms: dict, irqn: int):
+        """The form ``forms`` holds for ``irqn`` if a request of it raised now would be taken at
+        once: no handler running, no firmware code in progress, global interrupts on, nothing
+        pending, the lines untraced. Else None."""
+        form = forms.get(irqn)
         if form is None or self.stack or self._in_code:
             return None
         quiet = getattr(self.nvic, "quiet", None)
-        if quiet is None or not quiet():
+        return form if quiet is not None and quiet() else None
+
+    def _handler_ticks(self, irqn: int, form):
+        """(entry ticks, handler ticks) of ``irqn`` while its vector runs ``form``'s handler and
+        the form stands, else None."""
+        vec = self.vectors.get(irqn)
+        if vec is None or vec[0] is not form.handler or not form.valid():
             return None
+        period = self.clock.period
+        return self.entry_latency * period, vec[1] * period
+
+    def served_tick(self, irqn: int):
+        """(entry ticks, handler ticks, form, idle pass) when a request of ``irqn`` raised now
+        would be taken at once and be all the CPU does until its handler returns (as
+        :meth:`served`, with no task running: all are blocked), its handler has a
+        :class:`TickForm` that stands, and the one task its signal wakes serves an
+        :class:`IdlePass`. Else None."""
+        form = self._taken_at_once(self.tick_forms, irqn)
         rtos = self.rtos
-        if rtos is None or rtos.current is not None or rtos._wfi_blocked:
+        if form is None or rtos is None or rtos.current is not None or rtos._wfi_blocked:
             return None
         idle = None
         for t in rtos.tasks:
@@ -238,11 +252,8 @@ class Cpu:
                 if idle is not None or w[1] is None or t.deadline is not None or not w[1].valid():
                     return None
                 idle = w[1]
-        vec = self.vectors.get(irqn)
-        if idle is None or vec is None or vec[0] is not form.handler or not form.valid():
-            return None
-        period = self.clock.period
-        return self.entry_latency * period, vec[1] * period, form, idle
+        ticks = None if idle is None else self._handler_ticks(irqn, form)
+        return None if ticks is None else ticks + (form, idle)
 
     def served(self, irqn: int):
         """(entry ticks, handler ticks, form) when a request of ``irqn`` raised now would be taken at
@@ -250,11 +261,8 @@ class Cpu:
         that stands: no handler running, global interrupts on, nothing pending, interrupt lines
         untraced, no task waiting for an interrupt, none ready but the current one, and that one
         (if any) in a busy wait (:meth:`busy_task`). Else None."""
-        form = self.closed_forms.get(irqn)
-        if form is None or self.stack or self._in_code:
-            return None
-        quiet = getattr(self.nvic, "quiet", None)
-        if quiet is None or not quiet():
+        form = self._taken_at_once(self.closed_forms, irqn)
+        if form is None:
             return None
         rtos = self.rtos
         if rtos is not None:
@@ -262,11 +270,8 @@ class Cpu:
             if (rtos._wfi_blocked or (cur is not None and cur.end_ev is None)
                     or any(t.state == "ready" and t is not cur for t in rtos.tasks)):
                 return None
-        vec = self.vectors.get(irqn)
-        if vec is None or vec[0] is not form.handler or not form.valid():
-            return None
-        period = self.clock.period
-        return self.entry_latency * period, vec[1] * period, form
+        ticks = self._handler_ticks(irqn, form)
+        return None if ticks is None else ticks + (form,)
 
     def busy_task(self):
         """The task in a busy wait (``await cpu.cycles(n)``, its end queued) that a handler taken
