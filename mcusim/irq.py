@@ -206,6 +206,7 @@ class AvrInterrupts:
     def __init__(self, num_vectors: int = 26):
         self.num_vectors = num_vectors
         self.lines: dict[int, bool] = {}
+        self._raised = 0     # how many lines are high (quiet() asks at every served edge)
         self.on_entry: dict[int, object] = {}
         self.i_flag = False  # SREG.I; the Arduino core's init() starts with sei()
         self.cpu = None
@@ -217,6 +218,7 @@ class AvrInterrupts:
         if self.lines.get(vector, False) == level:
             return
         self.lines[vector] = level
+        self._raised += 1 if level else -1
         for fn in self.line_listeners:
             fn(vector, level)
         if level and self.cpu is not None:
@@ -239,7 +241,7 @@ class AvrInterrupts:
     def quiet(self) -> bool:
         """Global interrupts on, no request pending or in service, the lines untraced: a request
         raised now is taken at once and is all that happens (``Cpu.served``)."""
-        return self.i_flag and not self.active and not self.line_listeners and not any(self.lines.values())
+        return self.i_flag and not self.active and not self.line_listeners and not self._raised
 
     @staticmethod
     def context_priority(vector: int) -> int:

@@ -2,6 +2,8 @@
 
 import pytest
 from cortexm_rig import NVIC, enable, rig
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mcusim.errors import McusimError
 from mcusim.firmware import Cpu, Rtos
@@ -283,3 +285,16 @@ def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later
     k.at(8500, a.fire)
     k.run_until(10_000)
     assert seen == [("a", False, 3), ("b", True, 7), ("a2", True, 8)]
+
+
+@settings(max_examples=200, deadline=None)
+@given(ops=st.lists(st.tuples(st.integers(1, 25), st.booleans()), max_size=40))
+def test_avr_quiet_means_no_line_high_whatever_the_order_they_were_set(ops):
+    """``AvrInterrupts.quiet`` keeps a count of the lines that are high (it is asked at every
+    served edge); it must say what scanning the lines says."""
+    from mcusim.irq import AvrInterrupts
+    irq = AvrInterrupts()
+    irq.i_flag = True
+    for vector, level in ops:
+        irq.set_line(vector, level)
+        assert irq.quiet() == (not any(irq.lines.values()))
