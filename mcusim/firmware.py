@@ -76,12 +76,15 @@ class ClosedForm:
     entry, does what ``handler`` does, and nothing else: it reads no time, fires no Signal and
     schedules nothing. It applies only while ``handler`` is the one bound to the vector and
     ``valid()`` holds: whatever the declarer needs, e.g. that the handler still calls the same
-    function and that no register log watches the reads the step skips."""
+    function and that no register log watches the reads the step skips. ``walk(levels)``, optional,
+    does ``step(*l)`` for each ``l`` of the sequence ``levels`` in order, at once; forms sharing one
+    ``walk`` change one state, so a run of edges through any of them may be walked together."""
 
-    __slots__ = ("handler", "nets", "step", "valid")
+    __slots__ = ("handler", "nets", "step", "valid", "walk")
 
-    def __init__(self, handler, nets, step, valid):
+    def __init__(self, handler, nets, step, valid, walk=None):
         self.handler, self.nets, self.step, self.valid = handler, tuple(nets), step, valid
+        self.walk = walk
 
 
 class TickForm:

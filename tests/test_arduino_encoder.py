@@ -27,6 +27,7 @@ class FakeCore:
         self.delays = []
         self.log = []
         self.forms = {}             # interrupt number -> (pins, step) declared closed forms
+        self.walks = {}             # interrupt number -> the walk declared with it
 
     # ArduinoCore
     def digital_read(self, pin):
@@ -64,8 +65,9 @@ class FakeCore:
     def read8(self, addr):
         return self.digital_read(addr - 1000)
 
-    def attach_closed_form(self, n, pins, step):
+    def attach_closed_form(self, n, pins, step, walk=None):
         self.forms[n] = (tuple(pins), step)
+        self.walks[n] = walk
 
     # test side
     def set_pin(self, pin, level):
@@ -131,6 +133,24 @@ def test_declared_closed_form_of_each_isr_does_what_update_does(index, position)
         enc.encoder.state, enc.encoder.position = index & 3, position
         step(p1, p2)
         assert (enc.encoder.state, enc.encoder.position) == (ref.state, ref.position)
+
+
+@given(state=st.integers(0, 3), position=st.integers(-(2**31), 2**31 - 1),
+       levels=st.lists(st.tuples(st.integers(0, 1), st.integers(0, 1)), max_size=300))
+def test_the_declared_walk_does_what_the_closed_form_does_level_by_level(state, position, levels):
+    """The fast engine applies a counted run's edges with the walk both ISRs declare (one state,
+    one object): any sequence of levels, from any state, across the int32 wrap, must leave state
+    and position as stepping them one by one."""
+    core, enc = make()
+    assert core.walks[0] is not None and core.walks[0] is core.walks[1]
+    _, step = core.forms[0]
+    enc.encoder.state, enc.encoder.position = state, position
+    for p1, p2 in levels:
+        step(p1, p2)
+    stepped = (enc.encoder.state, enc.encoder.position)
+    enc.encoder.state, enc.encoder.position = state, position
+    core.walks[1](levels)
+    assert (enc.encoder.state, enc.encoder.position) == stepped
 
 
 def test_pin1_leading_counts_negative_vector_13():

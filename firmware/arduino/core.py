@@ -272,12 +272,13 @@ class ArduinoCore:
         if self.int_func[n] is not None:
             self.attach_interrupt(n, self.int_func[n], (self._r(EICRA) >> 2 * n) & 3)
 
-    def attach_closed_form(self, n: int, pins, step) -> None:
+    def attach_closed_form(self, n: int, pins, step, walk=None) -> None:
         """Simulation: the function attached to external interrupt ``n`` does exactly
         ``step(*levels)``, ``levels`` being the levels (0/1) its pins ``pins`` have when it runs,
         and reads no other register. The fast engine then serves edges that nothing else
         interacts with in closed form; while a register log watches the pins' PINx reads, or once
-        another function is attached (or none), it runs the function itself."""
+        another function is attached (or none), it runs the function itself. ``walk(levels)``,
+        if given, does ``step`` for each tuple of ``levels`` in order (:class:`ClosedForm`)."""
         fn = self.int_func[n] if n in (0, 1) else None
         if fn is None:
             raise ConfigError(f"attach_closed_form({n}): nothing is attached to interrupt {n}")
@@ -287,7 +288,7 @@ class ArduinoCore:
             ports.append(self.bus.peripheral_at(address)[0])
         nets = [self.pin_net(pin) for pin in pins]
         valid = lambda: self.int_func[n] is fn and all(p.access_log is None for p in ports)
-        self.cpu.closed_form((INT0_vect, INT1_vect)[n], ClosedForm(self._int_isr[n], nets, step, valid))
+        self.cpu.closed_form((INT0_vect, INT1_vect)[n], ClosedForm(self._int_isr[n], nets, step, valid, walk))
 
     def pin_net(self, pin: int):
         """The net of digital pin ``pin`` (simulation)."""

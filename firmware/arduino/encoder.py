@@ -90,6 +90,7 @@ class Encoder:
     def __init__(self, core: ArduinoCore, pin1: int, pin2: int):
         self.core = core
         self._pin1, self._pin2 = pin1, pin2      # simulation: for attach_closed_form
+        self._walks = {}                         # simulation: the closed forms' walk per state
         self.interrupt_args = interrupt_args_for(core)
         core.pin_mode(pin1, INPUT_PULLUP)
         core.pin_mode(pin2, INPUT_PULLUP)
@@ -189,6 +190,17 @@ class Encoder:
         if d:
             arg.position = _int32(arg.position + d)
 
+    @staticmethod
+    def update_walk(arg: EncoderInternalState, levels) -> None:
+        """Simulation: what ``update_from_levels(arg, p1val, p2val)`` does for each
+        (p1val, p2val) of ``levels`` in order (the position wraps once at the end: the same int32)."""
+        state, position = arg.state, arg.position
+        for p1val, p2val in levels:
+            s = (state & 3) | (4 if p1val else 0) | (8 if p2val else 0)
+            state = s >> 2
+            position += _STEP[s]
+        arg.state, arg.position = state, _int32(position)
+
     def attach_interrupt(self, pin: int, state: EncoderInternalState) -> int:
         # The C switches on CORE_INT0_PIN/CORE_INT1_PIN (2, 3 on the 328P); asking the core's
         # digitalPinToInterrupt gives the same mapping without hard-coding the variant.
@@ -199,5 +211,8 @@ class Encoder:
         self.core.attach_interrupt(n, self.interrupt_args.isr[n], CHANGE)
         # simulation: isr<n> is update(state), a function of the levels of this encoder's pins
         pins = (self._pin1, self._pin2)
-        self.core.attach_closed_form(n, pins, lambda p1, p2: Encoder.update_from_levels(state, p1, p2))
+        walk = self._walks.get(id(state))      # one per state: both pins' handlers step it alike
+        if walk is None:
+            walk = self._walks[id(state)] = lambda levels: Encoder.update_walk(state, levels)
+        self.core.attach_closed_form(n, pins, lambda p1, p2: Encoder.update_from_levels(state, p1, p2), walk)
         return 1

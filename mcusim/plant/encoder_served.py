@@ -223,17 +223,27 @@ class Crossings:
         d = self.pending[1]
         k = self.pos
         ra, rb = self.ra, self.rb
-        step_a, step_b = ra.stepper(enc.a, enc.b), rb.stepper(enc.a, enc.b)
-        la, na = self.la, 0
-        for _ in range(m):
-            k += d
-            qa, qb = enc.levels(k)
-            if qa != la:            # A changed: INT on A's pin
-                step_a(qa, qb)
-                na += 1
-                la = qa
-            else:
-                step_b(qa, qb)
+        fa, fb = ra.form, rb.form
+        if fa.walk is not None and fa.walk is fb.walk and fa.nets == fb.nets and fa.nets in (
+                (enc.a, enc.b), (enc.b, enc.a)):
+            # one state stepped by both handlers: the walk at once. A and B change by turns on a
+            # quadrature walk, A first where the first step changes it
+            levels = [enc.levels(j) for j in range(k + d, k + d * (m + 1), d)]
+            fa.walk(levels if fa.nets[0] is enc.a else [(b, a) for a, b in levels])
+            na = (m + 1) // 2 if levels[0][0] != self.la else m // 2
+            k += d * m
+        else:
+            step_a, step_b = ra.stepper(enc.a, enc.b), rb.stepper(enc.a, enc.b)
+            la, na = self.la, 0
+            for _ in range(m):
+                k += d
+                qa, qb = enc.levels(k)
+                if qa != la:            # A changed: INT on A's pin
+                    step_a(qa, qb)
+                    na += 1
+                    la = qa
+                else:
+                    step_b(qa, qb)
         ra.charge(na)
         rb.charge(m - na)
         self.la, self.lb = enc.levels(k)
