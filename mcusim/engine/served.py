@@ -222,7 +222,8 @@ def serve_run(kernel, owner) -> bool:
         return False
     charged = {cpu: cpu.busy_ticks for cpu in busy.values()}
     last = {}       # busy CPU -> (return, plan index) of its last handler served
-    if ends or len(charged) > 1 or (ticks and any(t.cpu in charged for t in ticks)):
+    # (a CPU whose overflow may be served has no busy task: all its tasks are blocked)
+    if ends or len(charged) > 1:
         done = _plan(kernel, streams, plain, ends, last)
     else:           # every handler served returns before the barrier, so before each busy task's end
         done = _count(kernel, streams, barrier, ticks)
@@ -246,9 +247,10 @@ def _stranger_first(kernel, owner, busy) -> bool:
     handler could return, settled without making any other stream (:func:`_doomed` after them).
     Passed over: the motors' events (a crossing may join the run), the ``busy`` tasks' ends of
     the owner's CPUs and the timer overflows a run may serve (:mod:`.ticks`: the owner's handler
-    may delay one, or another module's stream joins the run first). What is left bounds the owner's first handler: either it is the barrier
-    (or comes after it), or it is the busy end of another module whose stream joins the run,
-    before which :func:`_before_ends` wants every other CPU's handlers returned."""
+    may delay one, or another module's stream joins the run first). What is left bounds the
+    owner's first handler: either it is the barrier (or comes after it), or it is the busy end of
+    another module whose stream joins the run, before which :func:`_before_ends` wants every
+    other CPU's handlers returned."""
     skip = set()
     while True:
         head = kernel.first_queued(skip)
