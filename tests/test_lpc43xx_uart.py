@@ -432,3 +432,58 @@ def test_pty_round_trip_with_pyserial():
     finally:
         ep.close()
     assert ep.closed
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(1, 17), ier=st.sampled_from([0, 0x02]), start=st.integers(0, 5000))
+def test_a_mid_burst_frame_end_is_inert_up_to_the_frame_end_that_empties_the_fifo(n, ier, start):
+    """The fast engine's served runs pass over a frame end that changes nothing outside the USART
+    (``Usart.served_inert``): its bound must be the tick of the first later frame end that does
+    (the one loading the FIFO's last byte: THRE), None for that one, and no bound (inf) after it.
+    Checked against the frame ends as they run: before the bound nothing but ``tx_log`` and the
+    FIFO moves (LSR's THRE and the interrupt id stay as they were; the last frame sets TEMT, a
+    bit firmware reads at its own tick, after every frame end before it has run)."""
+    mcu, u = rig()
+    lpcopen_init(mcu)
+    mcu.write32(IER, ier)
+    mcu.kernel.run_until(start)
+    for b in range(n):
+        mcu.write32(THR, 0x41 + b)
+    bound = None
+    while u._tx_ev is not None:
+        ev = u._tx_ev
+        got = u.served_inert(ev)
+        mcu.kernel.run_until(ev.time - 1)               # what comes before it (a delayed THRE)
+        before = (mcu.read32(LSR) & 0x60, u.interrupt_id())
+        mcu.kernel.run_until(ev.time)
+        after = (mcu.read32(LSR) & 0x60, u.interrupt_id())
+        if bound is not None and ev.time < bound:
+            assert got == bound                         # the same bound all along the burst
+        if got is None:
+            assert ev.time == bound or bound is None    # the frame end that empties the FIFO
+            assert not u._txq and u._tsr is not None and after[0] & 0x20
+            bound = None
+        elif got == math.inf:
+            # the last frame: nothing follows, and only TEMT moves (read by firmware when it reads)
+            assert u._tx_ev is None and before[1] == after[1] and after[0] == 0x60
+        else:
+            assert before == after and u._txq          # inert: THRE and the interrupt id unchanged
+            bound = got
+    assert len(u.tx_log) == n
+
+
+def test_a_frame_end_is_not_inert_where_someone_sees_it():
+    """A far end, a task waiting on ``tx_done`` or a byte in the RX FIFO (the character time-out
+    depends on the tick) make every frame end an event of its own."""
+    for case in ("endpoint", "waiter", "rx"):
+        mcu, u = rig(endpoint=BufferEndpoint() if case == "endpoint" else None)
+        lpcopen_init(mcu)
+        if case == "waiter":
+            u.tx_done._wait(lambda: None)
+        if case == "rx":
+            u.receive(b"x")
+            mcu.kernel.run_until(mcu.kernel.now + math.ceil(2 * F115200))
+            assert u._rxq
+        for b in range(6):
+            mcu.write32(THR, b)
+        assert u.served_inert(u._tx_ev) is None, case

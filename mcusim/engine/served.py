@@ -62,7 +62,7 @@ these outlive the handler, so serving leaves them as the edge-by-edge run leaves
 
 from __future__ import annotations
 
-from ..kernel import PRIO_CPU, PRIO_PLANT
+from ..kernel import PRIO_CPU, PRIO_HW, PRIO_PLANT
 from .ticks import tick_run
 
 
@@ -144,6 +144,23 @@ class Item:
         self.route = route
 
 
+def inert_until(ev):
+    """Where the queued event ``ev`` is *inert*, the (tick, priority) before which neither it nor
+    anything it schedules changes a state outside its own peripheral that firmware, another
+    peripheral or the plant can see (its owner's ``served_inert(ev)``: a USART frame end in the
+    middle of a FIFO burst, :meth:`mcusim.periph.lpc43xx.uart.Usart.served_inert`); else None.
+
+    A run passes over an inert event and leaves it queued: it fires at its tick after the run has
+    committed crossings beyond it, which it does not see, as it does nothing they could see. The
+    first tick at which its consequences may stop being inert bounds the run like a barrier."""
+    owner = getattr(ev.fn, "__self__", None)
+    served_inert = getattr(owner, "served_inert", None)
+    if served_inert is None:
+        return None
+    tick = served_inert(ev)
+    return None if tick is None else (tick, PRIO_HW)
+
+
 def _stream_of(ev, cpus):
     """The stream of crossings whose queued event ``ev`` is (a motor's next encoder crossing whose
     edges could be served on CPUs other than ``cpus``), or None."""
@@ -191,9 +208,18 @@ def serve_run(kernel, owner) -> bool:
         return False
     ticks = []                  # timer overflows a counted run may serve (mcusim.engine.ticks)
     plain = None                # the barrier of a run that serves none: the first of them
+    inert = None                # the first tick at which a passed inert event may stop being so
     head = kernel.first_queued()
     while head is not None:
         ev = head[3]
+        if inert is not None and (head[0], head[1]) >= inert:
+            break               # beyond the bound set by inert events passed over
+        until = inert_until(ev)
+        if until is not None:
+            inert = until if inert is None else min(inert, until)
+            absorbed.add(ev)
+            head = kernel.first_queued(absorbed)
+            continue
         if ev in busy:          # moved by the handlers the run serves on its CPU: not a barrier
             ends[busy[ev]] = ev.time
             absorbed.add(ev)
@@ -216,7 +242,9 @@ def serve_run(kernel, owner) -> bool:
         _note_busy(other.cpus, busy)
         head = kernel.first_queued(absorbed)
     barrier = None if head is None else (head[0], head[1])
-    if plain is None:
+    if inert is not None and (barrier is None or inert < barrier):
+        barrier = inert
+    if plain is None or (barrier is not None and barrier < plain):
         plain = barrier
     if barrier is not None and _doomed(streams, barrier):
         return False
@@ -252,13 +280,19 @@ def _stranger_first(kernel, owner, busy) -> bool:
     another module whose stream joins the run, before which :func:`_before_ends` wants every
     other CPU's handlers returned."""
     skip = set()
+    bound = None                # the tick at which inert events passed over may stop being so
     while True:
         head = kernel.first_queued(skip)
         if head is None:
-            return False
+            return bound is not None and (owner.first_return(), PRIO_CPU) >= bound
         ev = head[3]
-        if (ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream")
+        until = inert_until(ev)
+        if until is not None:
+            bound = until if bound is None else min(bound, until)
+        elif (ev not in busy and not hasattr(getattr(ev.fn, "__self__", None), "served_stream")
                 and tick_run(ev) is None):
+            if bound is not None and bound < (head[0], head[1]):
+                head = bound
             return (owner.first_return(), PRIO_CPU) >= (head[0], head[1])
         skip.add(ev)
 

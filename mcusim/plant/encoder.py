@@ -357,7 +357,7 @@ class QuadratureEncoder:
             # two handlers as bound now; if an event of no motor comes before that return (a
             # motor's may be a crossing to absorb, a busy task's end is moved by the handler),
             # the route lookups would be in vain (a timer overflow a run may serve is passed over:
-            # this handler may delay it)
+            # this handler may delay it, and so is an inert event: served.inert_until)
             cpu, va, vb = hint
             ha, hb = cpu.vectors.get(va), cpu.vectors.get(vb)
             if ha is not None and hb is not None:
@@ -366,7 +366,8 @@ class QuadratureEncoder:
                 if (head is not None and head[0] < tick + ticks
                         and not hasattr(getattr(head[3].fn, "__self__", None), "served_stream")):
                     task = cpu.busy_task()
-                    if (task is None or head[3] is not task.end_ev) and tick_run(head[3]) is None:
+                    if ((task is None or head[3] is not task.end_ev) and tick_run(head[3]) is None
+                            and served.inert_until(head[3]) is None):
                         return None
         ra, rb = served.route(self.a), served.route(self.b)
         if ra is None or rb is None:

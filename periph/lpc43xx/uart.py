@@ -352,6 +352,28 @@ class Usart(Peripheral):
         self._update_irq()
         self.tx_done.fire()
 
+    def served_inert(self, ev):
+        """Fast engine (:func:`mcusim.engine.served.inert_until`): where the queued event ``ev`` is
+        a frame end in the middle of a burst, the tick before which it and the frame ends it chains
+        change nothing outside this USART, else None. Such a frame end logs its byte and loads the
+        next one from a FIFO that keeps at least one more: THRE, the interrupt line and every
+        register stay as they are. It must have no far end and no one waiting on ``tx_done``, an
+        untraced ``tx_log`` and an empty RX FIFO (the character time-out is the one source that
+        depends on the tick). The first frame end that does more loads the FIFO's last byte."""
+        if (ev is not self._tx_ev or self.endpoint is not None or self.tx_done._waiters or self._rxq
+                or type(self.tx_log) is not RecentLog):
+            return None
+        q = len(self._txq)
+        if q == 0 or not self.value["TER"] & 1:
+            return math.inf             # nothing follows it
+        if q == 1:
+            return None                 # it empties the FIFO: THRE
+        try:
+            frame = self.frame_format()[0]
+        except UnsupportedConfiguration:
+            return None                 # the next frame raises
+        return self._tick(self._tx_end + (q - 1) * frame)
+
     def _write_ter(self, old, new):
         if new & 1 and not old & 1 and self._tsr is None and self._txq:
             fmt = self.frame_format()
