@@ -75,3 +75,39 @@ def test_delta_maps_compose_as_the_maps_do():
     x2 = pwl.affine2(eig, A, u_off, x1).eval(3e-5)
     for g, w in zip(pm.apply(D, x0), x2):
         assert abs(g - w) <= 1e-14 * max(abs(w), 1.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(V1=st.floats(1.0, 24.0), V2=st.floats(1.0, 24.0), T1=st.floats(0.0, 0.01), T2=st.floats(0.0, 0.01),
+       duty=st.floats(0.05, 0.95), n=st.integers(1, 300), grow=st.integers(1, 300))
+def test_maps_that_differ_only_in_their_inputs_share_powers_and_modes_and_lose_nothing(V1, V2, T1, T2, duty,
+                                                                                      n, grow):
+    """A supply voltage or a load torque moves only the period map's constant column: its linear
+    part, and so its powers (``LinearPowers``) and modes, are those of any other map with that
+    part. A table on powers another map built (to another length, in steps) gives the states bit
+    for bit as one on powers of its own, and modes taken from the other map are the full build's."""
+    from mcusim.engine import modal
+
+    A = (-900.0, -3.1, 156.25, -1e-3)
+    eig = pwl.eig2(*A)
+    P = 5e-5
+
+    def period(V, T):
+        return pm.compose([pm.full_flow(eig, A, (V / 5e-3, -T / 1e-4), duty * P),
+                           pm.full_flow(eig, A, (0.0, -T / 1e-4), P - duty * P)])
+    D1, D2 = period(V1, T1), period(V2, T2)
+    assert D1[:3, :3].tobytes() == D2[:3, :3].tobytes()     # the inputs leave the linear part as it is
+    other = pm.PowerTable(D1, 512)
+    other.augmented_states((0.1, 2.0, 0.0), grow)           # built by the other map, to its own length
+    shared = pm.PowerTable(D2, 512, other.linear)
+    own = pm.PowerTable(D2, 512)
+    x0 = (0.3, -4.0, 1.5)
+    assert shared.augmented_states(x0, n).tobytes() == own.augmented_states(x0, n).tobytes()
+    Q1, Q2 = [[[0.0] * 4] * 4, D1.tolist()], [[[0.0] * 4] * 4, D2.tolist()]
+    try:
+        full = modal.Modes(Q2)
+    except ValueError:
+        return
+    like = modal.Modes(Q2, modal.Modes(Q1))
+    for attr in ("ystar", "bounds", "V", "Vi", "mu", "lg", "cplx"):
+        assert getattr(like, attr) == getattr(full, attr), attr

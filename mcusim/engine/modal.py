@@ -36,7 +36,11 @@ class Modes:
 
     __slots__ = ("V", "Vi", "bounds", "cplx", "lg", "mu", "ystar")
 
-    def __init__(self, Ql):
+    def __init__(self, Ql, like: Modes | None = None):
+        """From the plan's piece-start maps ``Ql`` (delta form, as lists). ``like``: the modes of
+        a plan with the same linear part (the (i, ω) block of its period map), whose eigenvalues
+        and vectors are taken as they are: only the fixed point and the boundary maps move with
+        the inputs. Raises ValueError where the period map has no usable modal form."""
         T = Ql[-1]
         t00, t01, t10, t11 = T[0][0], T[0][1], T[1][0], T[1][1]
         det = t00 * t11 - t01 * t10
@@ -45,6 +49,11 @@ class Modes:
         c0, c1 = T[0][3], T[1][3]
         # fixed point: (M − I)·y* = −c, M − I = the delta block
         self.ystar = ((-c0 * t11 + c1 * t01) / det, (-t00 * c1 + t10 * c0) / det)
+        # boundary b (piece b's start; b = len(pieces): the next period's): y_b = A_b·y + b_b
+        self.bounds = [((1.0 + q[0][0], q[0][1], q[1][0], 1.0 + q[1][1]), (q[0][3], q[1][3])) for q in Ql]
+        if like is not None:
+            self.V, self.Vi, self.cplx, self.mu, self.lg = like.V, like.Vi, like.cplx, like.mu, like.lg
+            return
         tr = t00 + t11
         disc = tr * tr - 4.0 * det
         if disc > 0.0:
@@ -86,8 +95,6 @@ class Modes:
             self.lg = (math.log1p(d1), math.log1p(d2))
         if self.cplx and abs(mu[0]) >= 1.0:
             raise ValueError("period map not a contraction")
-        # boundary b (piece b's start; b = len(pieces): the next period's): y_b = A_b·y + b_b
-        self.bounds = [((1.0 + q[0][0], q[0][1], q[1][0], 1.0 + q[1][1]), (q[0][3], q[1][3])) for q in Ql]
 
 
 def span(f, lg, en, last: float, cplx: bool):

@@ -4,10 +4,11 @@ Within a piece of constant drive and constant mode the motor obeys ``ẋ = A·x 
 x = (i, ω, θ) (:mod:`mcusim.plant.dcmotor`), so the state after τ seconds is an affine function of
 the state at the piece start: ``x(τ) = Φ(τ)·x(0) + g(τ)`` (:func:`full_flow`, from the same
 eigen-decomposition the closed-form segments use). The pieces of one period compose into one map
-``x_{k+1} = M·x_k + c`` (:func:`compose`); N periods are its N-th power. :class:`PowerTable` holds
-the powers ``T^k`` of the augmented 4×4 map ``T = [[M, c], [0, 1]]`` for k = 0..N, built by
-doubling, so the states at all N period boundaries are one matrix product
-(:meth:`PowerTable.states`).
+``x_{k+1} = M·x_k + c`` (:func:`compose`); N periods are its N-th power. :class:`LinearPowers`
+holds ``M^k`` and ``M^0 + … + M^(k−1)`` for k = 0..N, built by doubling, and :class:`PowerTable`
+the powers of the augmented map ``T = [[M, c], [0, 1]]`` from them and c, so the states at all N
+period boundaries are one matrix product (:meth:`PowerTable.states`). Only c depends on the
+inputs (supply voltage, load torque): maps that differ in them share their linear powers.
 
 **Delta form.** Every map is held as ``D = T − I`` and applied as ``x + D·(x, 1)``. A PWM period
 changes the state by a small fraction of itself (the mechanical mode decays by ~1e-4 per period):
@@ -106,40 +107,59 @@ def apply_rows(M, x):
             c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
 
 
-class PowerTable:
-    """Powers ``T^k`` (k = 0..n) of an augmented affine map ``T``, held in delta form
-    ``D_k = T^k − I`` from ``D = T − I``, built by doubling and grown on demand (a chunk that an
-    input change cuts short never pays for powers it does not use). The table only grows by whole
-    doublings, so every entry is the same whether it was built at once or in steps."""
+class LinearPowers:
+    """The powers of a period map's linear part, shared by every map that has it: with
+    ``M = I + L`` (i, ω, θ), the table holds ``L_k = M^k − I`` and ``S_k = M^0 + … + M^(k−1)``
+    for k = 0..n, as the top rows ``[L_k | S_k]`` (3×6) of ``Z^k − I`` for the block map
+    ``Z = [[M, I], [0, I]]``. A map ``T = [[M, c], [0, 1]]`` then has ``T^k − I = [[L_k, S_k·c],
+    [0, 0]]``: the states after k periods from x are ``x + L_k·x + S_k·c``, whatever c is. The
+    period's constant part c moves with the inputs (a supply voltage, a load torque) while M
+    does not: the rover's battery and body change them every millisecond, and the powers
+    outlive them. Built by doubling, grown on demand, and only by whole doublings (so every entry
+    is the same whether it was built at once or in steps)."""
 
-    __slots__ = ("_flat", "limit", "n", "powers")
+    __slots__ = ("_flat", "n", "powers")
 
-    def __init__(self, D, n: int):
-        self.limit = n                 # the most powers anyone may ask for
-        self.powers = np.empty((2, 4, 4))
-        self.powers[0] = 0.0
-        self.powers[1] = D
+    def __init__(self, L):
+        self.powers = np.zeros((2, 3, 6))
+        self.powers[1, :, :3] = L
+        self.powers[1, :, 3:] = np.eye(3)
         self.n = 1
-        self._flat = self.powers.reshape(-1, 4)
+        self._flat = self.powers.reshape(-1, 6)
 
     def ensure(self, n: int) -> None:
-        """Make sure D_0 .. D_n are in the table."""
+        """Make sure the powers 0 .. n are in the table."""
         m = self.n
         if n <= m:
             return
         size = m
         while size < n:
             size *= 2
-        P = np.empty((size + 1, 4, 4))
+        P = np.empty((size + 1, 3, 6))
         P[:m + 1] = self.powers
         while m < size:
-            # T^(m+j) = T^j · T^m for j = 1..m: D_(m+j) = D_j + D_m + D_j · D_m (rows of the
-            # stacked D_j times one matrix)
+            # Z^(m+j) = Z^j · Z^m for j = 1..m; in delta form, with the zero bottom rows left
+            # out: D_(m+j) = D_j + D_m + D_j[:, :3] · D_m
             Dm = P[m]
-            P[m + 1:2 * m + 1] = (P[1:m + 1].reshape(-1, 4) @ Dm).reshape(-1, 4, 4) + P[1:m + 1] + Dm
+            P[m + 1:2 * m + 1] = (P[1:m + 1, :, :3].reshape(-1, 3) @ Dm).reshape(-1, 3, 6) + P[1:m + 1] + Dm
             m *= 2
         self.n, self.powers = size, P
-        self._flat = P.reshape(-1, 4)
+        self._flat = P.reshape(-1, 6)
+
+
+class PowerTable:
+    """Powers ``T^k`` (k = 0..n) of an augmented affine map ``T`` given in delta form ``D = T − I``:
+    its linear part's :class:`LinearPowers` (``linear``, shared between maps that have the same
+    one, or its own) and its constant column. A chunk that an input change cuts short never pays
+    for powers it does not use."""
+
+    __slots__ = ("c", "limit", "linear")
+
+    def __init__(self, D, n: int, linear: LinearPowers | None = None):
+        self.limit = n                 # the most powers anyone may ask for
+        D = np.asarray(D)
+        self.c = (float(D[0, 3]), float(D[1, 3]), float(D[2, 3]))
+        self.linear = LinearPowers(D[:3, :3]) if linear is None else linear
 
     def states(self, x0, n: int | None = None):
         """The states after k = 0..n periods from ``x0`` (rows (i, ω, θ))."""
@@ -147,10 +167,18 @@ class PowerTable:
 
     def augmented_states(self, x0, n: int):
         """Rows (i, ω, θ, 1) after k = 0..n periods."""
-        self.ensure(n)
-        v = np.array((x0[0], x0[1], x0[2], 1.0))
-        return (self._flat[:4 * (n + 1)] @ v).reshape(n + 1, 4) + v
+        lin = self.linear
+        lin.ensure(n)
+        c = self.c
+        v = np.array((x0[0], x0[1], x0[2], c[0], c[1], c[2]))
+        out = np.ones((n + 1, 4))
+        out[:, :3] = (lin._flat[:3 * (n + 1)] @ v).reshape(n + 1, 3) + v[:3]
+        return out
 
     def state(self, x0, k: int):
-        self.ensure(k)
-        return apply(self.powers[k], x0)
+        """The state after k periods from ``x0``, as floats."""
+        lin = self.linear
+        lin.ensure(k)
+        c = self.c
+        v = np.array((x0[0], x0[1], x0[2], c[0], c[1], c[2]))
+        return tuple(float(a) for a in lin.powers[k] @ v + v[:3])

@@ -37,7 +37,7 @@ import numpy as np
 from ..plant import pwl
 from . import held, modal, periodmap
 from .held import HeldRows, head
-from .periodmap import PowerTable
+from .periodmap import LinearPowers, PowerTable
 
 #: screen chunks of stuck pieces at their ends only (PeriodPlan._stuck_ends); off: every period
 STUCK_ENDS = True
@@ -58,11 +58,17 @@ class PeriodPlan:
     ``absA``/``absu`` the absolute values of the piece's (i, ω) dynamics, and guards ``(ci, cw, cθ, c0, strict, provider, tag)``.
     """
 
-    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int, formers=None, guard_cache=None):
+    def __init__(self, pieces, period_ticks: int, inv_hz: float, n: int, formers=None, guard_cache=None,
+                 linear_cache=None):
         self.pieces = pieces
         # guard arrays by (each piece's guards, the extra guards, which pieces are stuck), shared by
         # the plans of one motor: a PID moving the duty builds a plan at every step, same guards
         self.guard_cache = {} if guard_cache is None else guard_cache
+        # what depends on the period map's linear part alone (its powers, its modes), by that part,
+        # shared by the plans of one motor: a supply voltage or a load torque that changes every
+        # millisecond (the rover's battery and body) makes a new plan each time, with the same
+        # linear part
+        self.linear_cache = {} if linear_cache is None else linear_cache
         # per piece, the closed form of the piece from a start state (a pwl.Traj): the motor's
         # segment builder bound to the piece's drive, mode and the plan's parameters
         self.formers = formers
@@ -132,8 +138,21 @@ class PeriodPlan:
     def table(self) -> PowerTable:
         """The powers of the period map (built when first asked for: a held plan needs none)."""
         if self._table is None:
-            self._table = PowerTable(self.T, self._n)
+            key = ("powers", self.T[:3, :3].tobytes())
+            lin = self._shared(key, lambda: LinearPowers(self.T[:3, :3]))
+            self._table = PowerTable(self.T, self._n, lin)
         return self._table
+
+    def _shared(self, key, make):
+        """The entry ``key`` of the linear cache, made by ``make()`` if missing (the cache is
+        emptied when it holds 64 entries: memory stays flat)."""
+        cache = self.linear_cache
+        got = cache.get(key)
+        if got is None:
+            if len(cache) >= 64:
+                cache.clear()
+            got = cache[key] = make()
+        return got
 
     def _stacked(self):
         """(Wt, w, τ, |A|ᵀ, |u|, stuck, Q[1..npc-1]ᵀ side by side) as arrays, for the screening of
@@ -218,11 +237,9 @@ class PeriodPlan:
         it clears every guard over all n periods, else None (the full screening decides)."""
         modes = self._modes
         if modes is None:
-            try:
-                modes = modal.Modes(self.Ql)
-            except (ValueError, ZeroDivisionError, OverflowError):
-                modes = False
-            self._modes = modes
+            T = self.Ql[-1]
+            like = self._shared(("modes", T[0][0], T[0][1], T[1][0], T[1][1]), lambda: self._modes_of(None))
+            modes = self._modes = like and self._modes_of(like)
         if modes is False or any(g[2] for g in extra_guards) or self._theta_guards:
             return None
         pieces = self.pieces
@@ -230,6 +247,13 @@ class PeriodPlan:
         if got is None:
             return None
         return n, head(X, n + 1), got[0], got[1]
+
+    def _modes_of(self, like):
+        """The plan's :class:`modal.Modes` (eigenvectors as ``like``'s, if given), False if none."""
+        try:
+            return modal.Modes(self.Ql, like)
+        except (ValueError, ZeroDivisionError, OverflowError):
+            return False
 
     def _held_states(self, x0, n: int):
         """Period-start rows of a held chunk from a shaft at rest (:func:`held.held_states`)."""

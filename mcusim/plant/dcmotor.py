@@ -191,6 +191,7 @@ class DcMotor(PeriodicDrive):
         self._plans = OrderedDict()  # fast engine: PeriodPlan per (schedule, first piece, modes, params)
         self._flows = OrderedDict()  # fast engine: a piece's delta map per (drive, mode, ticks, params)
         self._guard_arrays = {}      # fast engine: the plans' stacked guard arrays (PeriodPlan.guard_cache)
+        self._linear_parts = {}      # fast engine: powers and modes by period-map linear part (PeriodPlan.linear_cache)
         self._chunk_n = CHUNK_MIN
         self._chunk_retry = -1
         self._stale = False        # fast engine: inputs changed at this tick, rebuild due

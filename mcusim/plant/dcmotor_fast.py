@@ -92,7 +92,8 @@ class PeriodicDrive:
                 plan_pieces[q] = (ticks, flow, absA, absu,
                                   tuple(self._mode_guards(*mode, drive)) + tuple(bguards), drive, mode, lin)
             plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX,
-                              [self._piece_former(pc[5], *pc[6]) for pc in plan_pieces], self._guard_arrays)
+                              [self._piece_former(pc[5], *pc[6]) for pc in plan_pieces], self._guard_arrays,
+                              self._linear_parts)
             _lru_put(plans, key, plan, PLANS_MAX)
         else:
             plans.move_to_end(key)
