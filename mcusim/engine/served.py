@@ -20,11 +20,12 @@ when:
   which may only be in a busy wait, interrupt lines not traced) and the handler declares a closed
   form that still stands for it (the handler bound, no register log watching the reads it skips).
   Both are looked up when the stream joins the run and hold at its later crossings because no
-  event that is not a served crossing comes before them (the barrier below);
+  event that is not a served crossing or an inert event comes before them (the barrier below);
 * exactly one output changes, by one threshold;
 * its handler's return (:meth:`Route.returns`: first CPU clock edge at or after the edge, plus
-  entry latency and handler cycles) comes before the first queued event that is not a crossing
-  absorbed into the run (the *barrier*), and within the run's horizon;
+  entry latency and handler cycles) comes before the first queued event that is neither a
+  crossing absorbed into the run nor an inert event passed over (:func:`inert_until`), and before
+  the bound of those passed over (together: the *barrier*), and within the run's horizon;
 * the stream's next crossing comes after that return (otherwise the handler would read the later
   levels, or the next request would wait or be lost: timing interacts).
 
@@ -188,11 +189,13 @@ def last_tick_returning_by(clock, ticks: int, R: int) -> int:
 def serve_run(kernel, owner) -> bool:
     """Serve the crossings of the stream ``owner``, whose first crossing is due now, and of the
     streams of other encoders whose queued crossings come before the *barrier* (the first queued
-    event that is not such a crossing). Their events are *absorbed*: they are cancelled if their
-    stream serves. Returns False if not even the first crossing is served (nothing changed); else
-    each stream has committed its crossings and scheduled what comes next (``finish``), all after
-    the last handler's return. ``kernel.now`` stays at the run's first crossing: no queued event
-    comes before the barrier, so nothing can look in between.
+    event that is not such a crossing, a busy end the run moves, a timer overflow it serves or an
+    inert event, or the bound of the inert events passed over, if earlier). Their events are
+    *absorbed*: they are cancelled if their stream serves. Returns False if not even the first
+    crossing is served (nothing changed); else each stream has committed its crossings and
+    scheduled what comes next (``finish``), all after the last handler's return. ``kernel.now``
+    stays at the run's first crossing: the only queued events before the barrier are inert ones,
+    which fire at their ticks after the run without seeing what it changed (nor it them).
 
     The run is counted (:func:`_count`) where it can be, else planned crossing by crossing
     (:func:`_plan`)."""
@@ -274,8 +277,9 @@ def _stranger_first(kernel, owner, busy) -> bool:
     """True where the first queued event that no run could absorb comes before the owner's first
     handler could return, settled without making any other stream (:func:`_doomed` after them).
     Passed over: the motors' events (a crossing may join the run), the ``busy`` tasks' ends of
-    the owner's CPUs and the timer overflows a run may serve (:mod:`.ticks`: the owner's handler
-    may delay one, or another module's stream joins the run first). What is left bounds the
+    the owner's CPUs, the timer overflows a run may serve (:mod:`.ticks`: the owner's handler
+    may delay one, or another module's stream joins the run first) and inert events (whose bound
+    counts as a queued event). What is left bounds the
     owner's first handler: either it is the barrier (or comes after it), or it is the busy end of
     another module whose stream joins the run, before which :func:`_before_ends` wants every
     other CPU's handlers returned."""

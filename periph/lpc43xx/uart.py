@@ -363,6 +363,8 @@ class Usart(Peripheral):
         if (ev is not self._tx_ev or self.endpoint is not None or self.tx_done._waiters or self._rxq
                 or type(self.tx_log) is not RecentLog):
             return None
+        # (with two bytes or more in the FIFO no delayed THRE is pending and the THRE flag is clear:
+        # every THR write cancels and clears them; a delayed THRE would be an event of its own anyway)
         q = len(self._txq)
         if q == 0 or not self.value["TER"] & 1:
             return math.inf             # nothing follows it
