@@ -111,6 +111,29 @@ class Kernel:
             return head[0] > time or (head[0] == time and head[1] > prio)
         return True
 
+    def queued(self):
+        """The (time, priority, sequence, event) entries in the order the run loop would pop them,
+        cancelled events left out, found lazily (a walk of the heap from its root): a scan that
+        stops early pays for what it looked at. The queue must not change while it is iterated."""
+        q = self._queue
+        if not q:
+            return
+        todo = [(q[0], 0)]
+        n = len(q)
+        pop, push = heapq.heappop, heapq.heappush
+        seq = self._seq
+        while todo:
+            entry, i = pop(todo)
+            if not entry[3].cancelled:
+                yield entry
+                if self._seq != seq or len(q) != n:
+                    raise RuntimeError("internal error: the event queue changed while it was scanned")
+            c = 2 * i + 1
+            if c < n:
+                push(todo, (q[c], c))
+                if c + 1 < n:
+                    push(todo, (q[c + 1], c + 1))
+
     def first_queued(self, skip=()):
         """The (time, priority, sequence, event) entry the run loop would pop first, leaving out
         cancelled events and the events in ``skip``, or None; the queue is left as it is."""

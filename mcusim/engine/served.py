@@ -203,7 +203,6 @@ def serve_run(kernel, owner) -> bool:
         return False            # what this event still has to do at its own tick comes first
     streams = [owner]
     cpus = set(owner.cpus)
-    absorbed = set()
     busy = {}                   # end event of a busy task of the run's CPUs -> that CPU
     ends = {}                   # those before the barrier: CPU -> tick
     _note_busy(owner.cpus, busy)
@@ -212,21 +211,19 @@ def serve_run(kernel, owner) -> bool:
     ticks = []                  # timer overflows a counted run may serve (mcusim.engine.ticks)
     plain = None                # the barrier of a run that serves none: the first of them
     inert = None                # the first tick at which a passed inert event may stop being so
-    head = kernel.first_queued()
-    while head is not None:
+    # the queue in order: each event the loop goes past is absorbed, the first one it stops at is
+    # the barrier (nothing below changes the queue)
+    head = None
+    for head in kernel.queued():
         ev = head[3]
         if inert is not None and (head[0], head[1]) >= inert:
             break               # beyond the bound set by inert events passed over
         until = inert_until(ev)
         if until is not None:
             inert = until if inert is None else min(inert, until)
-            absorbed.add(ev)
-            head = kernel.first_queued(absorbed)
             continue
         if ev in busy:          # moved by the handlers the run serves on its CPU: not a barrier
             ends[busy[ev]] = ev.time
-            absorbed.add(ev)
-            head = kernel.first_queued(absorbed)
             continue
         other = _stream_of(ev, cpus)
         if other is None:
@@ -236,14 +233,12 @@ def serve_run(kernel, owner) -> bool:
             ticks.append(tick)
             if plain is None:
                 plain = (head[0], head[1])
-            absorbed.add(ev)
-            head = kernel.first_queued(absorbed)
             continue
         streams.append(other)
-        absorbed.add(ev)
         cpus.update(other.cpus)
         _note_busy(other.cpus, busy)
-        head = kernel.first_queued(absorbed)
+    else:
+        head = None
     barrier = None if head is None else (head[0], head[1])
     if inert is not None and (barrier is None or inert < barrier):
         barrier = inert
@@ -279,16 +274,11 @@ def _stranger_first(kernel, owner, busy) -> bool:
     Passed over: the motors' events (a crossing may join the run), the ``busy`` tasks' ends of
     the owner's CPUs, the timer overflows a run may serve (:mod:`.ticks`: the owner's handler
     may delay one, or another module's stream joins the run first) and inert events (whose bound
-    counts as a queued event). What is left bounds the
-    owner's first handler: either it is the barrier (or comes after it), or it is the busy end of
+    counts as a queued event). What is left bounds the owner's first handler: either it is the barrier (or comes after it), or it is the busy end of
     another module whose stream joins the run, before which :func:`_before_ends` wants every
     other CPU's handlers returned."""
-    skip = set()
     bound = None                # the tick at which inert events passed over may stop being so
-    while True:
-        head = kernel.first_queued(skip)
-        if head is None:
-            return bound is not None and (owner.first_return(), PRIO_CPU) >= bound
+    for head in kernel.queued():
         ev = head[3]
         until = inert_until(ev)
         if until is not None:
@@ -298,7 +288,7 @@ def _stranger_first(kernel, owner, busy) -> bool:
             if bound is not None and bound < (head[0], head[1]):
                 head = bound
             return (owner.first_return(), PRIO_CPU) >= (head[0], head[1])
-        skip.add(ev)
+    return bound is not None and (owner.first_return(), PRIO_CPU) >= bound
 
 
 def _note_busy(cpus, busy) -> None:
