@@ -237,9 +237,31 @@ def exact_voltage(v) -> Fraction:
     if isinstance(v, (int, Fraction)):
         return Fraction(v)
     v = float(v)
-    if not math.isfinite(v):
-        raise McusimError(f"ADC input voltage {v} is not a finite number")
-    return Fraction(repr(v))
+    got = _EXACT.get(v)
+    if got is None:
+        if not math.isfinite(v):
+            raise McusimError(f"ADC input voltage {v} is not a finite number")
+        got = _decimal(repr(v))
+        if len(_EXACT) >= 256:
+            _EXACT.clear()
+        _EXACT[v] = got
+    return got
+
+
+# recent conversions (a reference voltage is converted at every sample); -0.0 keys as 0.0, the
+# same value
+_EXACT: dict[float, Fraction] = {}
+
+
+def _decimal(text: str) -> Fraction:
+    """``Fraction(text)`` for a float's repr ("-1.25e-07", "12.5", "3e+20"), without the regular
+    expression Fraction's string parser runs (a few times faster; an ADC converts every sample)."""
+    mant, _, exp = text.partition("e")
+    e = int(exp) if exp else 0
+    whole, _, frac = mant.partition(".")
+    n = int(whole + frac)               # int() takes the sign
+    e -= len(frac)
+    return Fraction(n * 10 ** e) if e >= 0 else Fraction(n, 10 ** -e)
 
 
 class AnalogNet:

@@ -283,3 +283,22 @@ def test_result_is_floor_of_v_times_1024_over_vref(v, t_req):
     mcu.kernel.run_until(t_req)
     code = analog_read(mcu)
     assert code == min(1023, int(Fraction(repr(v)) * 1024 // 5))
+
+
+@settings(max_examples=500, deadline=None)
+@given(v=st.floats(allow_nan=False, allow_infinity=False))
+def test_exact_voltage_is_the_floats_shortest_decimal_for_every_finite_float(v):
+    """The ADC's exact input (``floor(V·1024/Vref)`` decides code boundaries exactly): the float's
+    repr as a Fraction, the same on a second call (answered from the cache)."""
+    from mcusim.signals import exact_voltage
+
+    assert exact_voltage(v) == Fraction(repr(v)) == exact_voltage(v)
+
+
+def test_exact_voltage_refuses_what_is_not_a_finite_number():
+    from mcusim.errors import McusimError
+    from mcusim.signals import exact_voltage
+
+    for v in (float("nan"), float("inf"), float("-inf")):
+        with pytest.raises(McusimError, match="not a finite number"):
+            exact_voltage(v)
