@@ -270,9 +270,11 @@ class Cpu:
         rtos = self.rtos
         if rtos is not None:
             cur = rtos.current
-            if (rtos._wfi_blocked or (cur is not None and cur.end_ev is None)
-                    or any(t.state == "ready" and t is not cur for t in rtos.tasks)):
+            if rtos._wfi_blocked or (cur is not None and cur.end_ev is None):
                 return None
+            for t in rtos.tasks:        # (a loop: this runs for every stream of every served run)
+                if t.state == "ready" and t is not cur:
+                    return None
         ticks = self._handler_ticks(irqn, form)
         return None if ticks is None else ticks + (form,)
 
