@@ -69,6 +69,14 @@ class Signal:
     def _wait(self, fn) -> None:
         self._waiters.append(fn)
 
+    def _unwait(self, fn) -> None:
+        """Withdraw a waiter that gave up (a wait that timed out): a signal that never fires must
+        not collect them (the rover's MAVLink task waits on one ten times a second)."""
+        try:
+            self._waiters.remove(fn)
+        except ValueError:
+            pass
+
 
 class ClosedForm:
     """A handler's effect as a pure function of pin levels, for the fast engine's served edges
@@ -149,6 +157,7 @@ class Task(Context):
         self.deadline = None   # RTOS tick at which a wait_signal(timeout=) gives up
         self.wait_token = None
         self.waiting_on = None  # while blocked in wait_signal: (signal, its IdlePass or None)
+        self.wait_fn = None     # and the waiter it left on the signal
 
     def __del__(self):
         # a simulation dropped before its tasks ran: end the coroutine quietly (Python warns
@@ -537,7 +546,8 @@ class Rtos:
             elif (t.state == "blocked" and t.wake_tick == "signal" and t.deadline is not None
                   and t.deadline <= self.tick_count):
                 t.state, t.wake_tick, t.deadline, t.result = "ready", None, None, False
-                t.waiting_on = None
+                t.waiting_on[0]._unwait(t.wait_fn)
+                t.waiting_on = t.wait_fn = None
 
     def reschedule(self) -> None:
         """Pick the most urgent ready task (called in thread mode, after exceptions return)."""
@@ -592,10 +602,11 @@ class Rtos:
             def wake(task=task, token=token):
                 if task.state == "blocked" and task.wake_tick == "signal" and task.wait_token is token:
                     task.state, task.wake_tick, task.deadline, task.result = "ready", None, None, True
-                    task.waiting_on = None
+                    task.waiting_on = task.wait_fn = None
                     if not self.cpu.stack:
                         self.reschedule()
                         self.cpu._resume(self.current)
+            task.wait_fn = wake
             signal._wait(wake)
             self._switch()
         elif req.kind == "wfi":

@@ -287,6 +287,35 @@ def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later
     assert seen == [("a", False, 3), ("b", True, 7), ("a2", True, 8)]
 
 
+def test_waits_that_time_out_leave_no_waiter_on_a_signal_that_never_fires():
+    """A task polling with a timeout (the rover's MAVLink task, ten times a second) on a signal
+    that never fires: each timed-out wait withdraws its waiter, so memory stays flat however long
+    the run (the waiters piled up, one per wait, before)."""
+    from mcusim.firmware import Signal
+    tb = TimeBase([1_000_000])
+    k = Kernel(tb)
+    cpu = Cpu(k, tb.clock("cpu", 1_000_000), Nvic(num_irqs=16))
+    rtos = Rtos(cpu)
+    quiet = Signal()
+    results = []
+
+    async def task():
+        for _ in range(50):
+            results.append(await rtos.wait_signal(quiet, timeout=2))
+
+    rtos.create_task("t", task(), priority=1)
+
+    def tick():
+        rtos.systick_handler()
+        rtos.reschedule()
+        cpu._resume(rtos.current)
+    for n in range(1, 120):
+        k.at(n * 1000, tick)
+    k.run_until(120_000)
+    assert results == [False] * 50
+    assert len(quiet._waiters) == 0
+
+
 @settings(max_examples=200, deadline=None)
 @given(ops=st.lists(st.tuples(st.integers(1, 25), st.booleans()), max_size=40))
 def test_avr_quiet_means_no_line_high_whatever_the_order_they_were_set(ops):
