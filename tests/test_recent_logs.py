@@ -67,3 +67,6 @@ def test_no_list_reachable_from_a_run_grows_with_its_length(monkeypatch):
     monkeypatch.setattr(mcusim.recent, "KEEP", 40)
     assert _grown("pro-mini", {"velocity": 20}, 0.6) == []
     assert _grown("elementall", {"cmd_vel.linear": 0.5, "cmd_vel.angular": 0.2}, 0.2) == []
+    # the controller alone reports its modules missing and beeps that pattern for good: its buzzer
+    # log grew by 3 entries a second before it was a RecentLog
+    assert _grown("ciaa-edu", {}, 20.0) == []

@@ -56,6 +56,7 @@ from mcusim.fw.openrover_rcm.odometry import Odometry, Unwrap16
 from mcusim.errors import ConfigError
 from mcusim.kernel import PRIO_INPUT
 from mcusim.params import Param, firmware_params
+from mcusim.recent import RecentLog
 
 _ADDR = Param(0x08, min=0x08, max=0x77, doc="7-bit I2C address")
 DEFAULTS = {
@@ -197,7 +198,7 @@ class RoverControl:
         self.battery_log: list[tuple[int, str]] = []        # (tick, state) transitions
         self._samples: list[float] = []
         self.buzzer_on = False
-        self.buzzer_log: list[tuple[int, int]] = []         # (kernel tick, level) changes
+        self.buzzer_log = RecentLog()    # (kernel tick, level) changes, the recent ones (mcusim.recent)
         self._host = {"linear": 0.0, "angular": 0.0, "lateral": 0.0, "stream": True, "id": 0}
         self._stream_ev = None
         self.i2c = None
