@@ -255,31 +255,37 @@ def test_clear_pending_has_no_effect_while_level_line_is_asserted(m):
     assert m.read32(NVIC + 0x100) & (1 << 29)
 
 
-def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later_wait():
-    """nxsem_tickwait semantics: the wait ends after ``timeout`` RTOS ticks with False; a signal
-    firing later must not wake the task out of its next, unrelated wait."""
-    from mcusim.firmware import Signal
+def _rtos_ticking(task, ticks: int):
+    """A 1 MHz core running ``task(rtos)`` (a coroutine function) under an RTOS whose SysTick
+    comes every 1000 ticks, ``ticks`` times; returns (kernel, rtos) before anything runs."""
     tb = TimeBase([1_000_000])
     k = Kernel(tb)
-    nvic = Nvic(num_irqs=16)
-    cpu = Cpu(k, tb.clock("cpu", 1_000_000), nvic)
+    cpu = Cpu(k, tb.clock("cpu", 1_000_000), Nvic(num_irqs=16))
     rtos = Rtos(cpu)
-    a, b = Signal(), Signal()
-    seen = []
-
-    async def task():
-        seen.append(("a", await rtos.wait_signal(a, timeout=3), rtos.tick_count))
-        seen.append(("b", await rtos.wait_signal(b), rtos.tick_count))
-        seen.append(("a2", await rtos.wait_signal(a, timeout=100), rtos.tick_count))
-
-    rtos.create_task("t", task(), priority=1)
+    rtos.create_task("t", task(rtos), priority=1)
 
     def tick():
         rtos.systick_handler()
         rtos.reschedule()
         cpu._resume(rtos.current)
-    for n in range(1, 10):
+    for n in range(1, ticks + 1):
         k.at(n * 1000, tick)
+    return k, rtos
+
+
+def test_wait_signal_timeout_returns_false_and_a_late_fire_does_not_wake_a_later_wait():
+    """nxsem_tickwait semantics: the wait ends after ``timeout`` RTOS ticks with False; a signal
+    firing later must not wake the task out of its next, unrelated wait."""
+    from mcusim.firmware import Signal
+    a, b = Signal(), Signal()
+    seen = []
+
+    async def task(rtos):
+        seen.append(("a", await rtos.wait_signal(a, timeout=3), rtos.tick_count))
+        seen.append(("b", await rtos.wait_signal(b), rtos.tick_count))
+        seen.append(("a2", await rtos.wait_signal(a, timeout=100), rtos.tick_count))
+
+    k, _ = _rtos_ticking(task, 9)
     k.at(6500, a.fire)      # the stale waiter of the first wait must not wake the wait on b
     k.at(7500, b.fire)
     k.at(8500, a.fire)
@@ -292,25 +298,14 @@ def test_waits_that_time_out_leave_no_waiter_on_a_signal_that_never_fires():
     that never fires: each timed-out wait withdraws its waiter, so memory stays flat however long
     the run (the waiters piled up, one per wait, before)."""
     from mcusim.firmware import Signal
-    tb = TimeBase([1_000_000])
-    k = Kernel(tb)
-    cpu = Cpu(k, tb.clock("cpu", 1_000_000), Nvic(num_irqs=16))
-    rtos = Rtos(cpu)
     quiet = Signal()
     results = []
 
-    async def task():
+    async def task(rtos):
         for _ in range(50):
             results.append(await rtos.wait_signal(quiet, timeout=2))
 
-    rtos.create_task("t", task(), priority=1)
-
-    def tick():
-        rtos.systick_handler()
-        rtos.reschedule()
-        cpu._resume(rtos.current)
-    for n in range(1, 120):
-        k.at(n * 1000, tick)
+    k, _ = _rtos_ticking(task, 119)
     k.run_until(120_000)
     assert results == [False] * 50
     assert len(quiet._waiters) == 0
