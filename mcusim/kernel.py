@@ -134,23 +134,10 @@ class Kernel:
                 if c + 1 < n:
                     push(todo, (q[c + 1], c + 1))
 
-    def first_queued(self, skip=()):
+    def first_queued(self):
         """The (time, priority, sequence, event) entry the run loop would pop first, leaving out
-        cancelled events and the events in ``skip``, or None; the queue is left as it is."""
-        q = self._queue
-        if not q:
-            return None
-        todo = [(q[0], 0)]
-        n = len(q)
-        while todo:
-            entry, i = heapq.heappop(todo)
-            ev = entry[3]
-            if not ev.cancelled and ev not in skip:
-                return entry
-            for c in (2 * i + 1, 2 * i + 2):
-                if c < n:
-                    heapq.heappush(todo, (q[c], c))
-        return None
+        cancelled events, or None; the queue is left as it is."""
+        return next(self.queued(), None)
 
     def peek(self):
         """(time, priority) of the next event the run loop would pop, or None."""

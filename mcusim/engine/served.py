@@ -242,7 +242,7 @@ def serve_run(kernel, owner) -> bool:
     barrier = None if head is None else (head[0], head[1])
     if inert is not None and (barrier is None or inert < barrier):
         barrier = inert
-    if plain is None or (barrier is not None and barrier < plain):
+    if plain is None:       # (an overflow absorbed came before any inert bound: the loop stops there)
         plain = barrier
     if barrier is not None and _doomed(streams, barrier):
         return False
