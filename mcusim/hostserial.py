@@ -31,6 +31,7 @@ import select
 
 from .errors import ConfigError, McusimError
 from .kernel import PRIO_INPUT
+from .recent import RecentBytes, RecentLog
 
 RX_BUFFER = 1024     # bytes a host end holds for the USART's RX line; the rest is dropped
 
@@ -52,12 +53,16 @@ def inject(endpoint, data: bytes) -> None:
 
 
 class BufferEndpoint:
-    """In-memory endpoint: ``sent`` collects what the MCU transmitted, ``feed`` injects bytes."""
+    """In-memory endpoint: ``sent`` collects what the MCU transmitted, ``feed`` injects bytes.
+
+    ``sent`` (the bytes) and ``log`` (``(tick, byte)`` pairs) hold the recent past only, at least
+    the last :data:`mcusim.recent.KEEP` bytes (:mod:`mcusim.recent`; ``.total`` counts them all),
+    so an endpoint left attached to a rover's telemetry keeps memory flat."""
 
     def __init__(self):
         self.usart = None
-        self.sent = bytearray()
-        self.log: list[tuple[int, int]] = []   # (tick, byte) of every byte the MCU sent
+        self.sent = RecentBytes()
+        self.log: RecentLog = RecentLog()   # (tick, byte) of the bytes the MCU sent, the recent ones
 
     def attach(self, usart) -> None:
         self.usart = usart

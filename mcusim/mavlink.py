@@ -12,8 +12,8 @@ in-memory serial endpoint on a simulated UART.
 
 ``mav`` is a ``pymavlink.dialects.v20.common.MAVLink`` whose file is the UART's RX line: each
 ``*_send`` puts the frame on the line now, one USART frame per byte. Received frames are parsed
-byte by byte as the USART's TX frames end; ``log`` holds ``(tick, message)`` for every valid
-message, in order. Waits run the simulation (simulated time; the host clock plays no part) and
+byte by byte as the USART's TX frames end; ``log`` holds ``(tick, message)`` for the valid
+messages, in order (the recent ones, :class:`mcusim.recent.RecentLog`). Waits run the simulation (simulated time; the host clock plays no part) and
 raise :class:`mcusim.testing.SimTimeout` when nothing matching arrives in time.
 
 ``heartbeat_hz`` (default 1; 0 for none) sends a GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)
@@ -25,6 +25,7 @@ from __future__ import annotations
 from .errors import ConfigError
 from .hostserial import BufferEndpoint
 from .kernel import PRIO_INPUT
+from .recent import RecentLog
 from .testing import SimTimeout
 
 MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID = 6, 8
@@ -72,9 +73,11 @@ class MavlinkClient:
         self.mav.robust_parsing = True
         self._rx = ml.MAVLink(None, srcSystem=system, srcComponent=component)
         self._rx.robust_parsing = True
-        self.log: list[tuple[int, object]] = []
+        # (tick, message) of the messages received, the recent ones (mcusim.recent): a rover sends
+        # about 60 a second for as long as the client stays attached
+        self.log: RecentLog = RecentLog()
         self.errors = 0
-        self._read = 0
+        self._read = 0          # messages received before the next one a wait looks at (log.total)
         self._hb_period = None
         if heartbeat_hz:
             self._hb_period = sim.timebase.ticks(1 / heartbeat_hz, rounding=True)
@@ -106,12 +109,12 @@ class MavlinkClient:
 
     # --- waits (simulated time) ----------------------------------------------------------------------
     def messages(self, type: str | None = None) -> list:
-        """Every valid message received so far (of ``type``)."""
+        """The valid messages received so far (of ``type``): the recent ones ``log`` holds."""
         return [m for _, m in self.log if type is None or m.get_type() == type]
 
     def flush(self) -> None:
         """Forget the messages received so far: the next wait sees only newer ones."""
-        self._read = len(self.log)
+        self._read = self.log.total
 
     def recv_match(self, type: str | None = None, condition=None, timeout="1s"):
         """The next message not returned before (of ``type``, with ``condition(msg)`` true),
@@ -122,8 +125,11 @@ class MavlinkClient:
         found = []
 
         def scan():
-            while self._read < len(self.log):
-                _, m = self.log[self._read]
+            log = self.log
+            # a message trimmed from the log before any wait looked at it is passed over
+            self._read = max(self._read, log.dropped)
+            while self._read < log.total:
+                _, m = log[self._read - log.dropped]
                 self._read += 1
                 if (type is None or m.get_type() == type) and (condition is None or condition(m)):
                     found.append(m)
@@ -142,4 +148,4 @@ class MavlinkClient:
         for tick, m in self.log:
             if m is msg:
                 return tick
-        raise ValueError("not a received message")
+        raise ValueError("not a message the log holds (received, and among the recent ones)")

@@ -6,8 +6,9 @@ received with their ticks (``tx_log``, ``rx_log``), an I2C controller's status c
 so a run of an hour would hold millions. A :class:`RecentLog` is a ``list`` (it compares, slices
 and iterates like one) that drops its oldest entries once it holds twice ``keep``: at any time it
 holds at least the last ``keep`` entries (all of them while there are fewer), and ``total`` counts
-every entry ever appended. Whoever needs a complete record of a long run streams it instead (a
-serial link, a MAVLink link, the VCD's bus wires).
+every entry ever appended. :class:`RecentBytes` is the same for a byte stream (an in-memory serial
+end's ``sent``). Whoever needs a complete record of a long run streams it instead (a serial link, a
+MAVLink link, the VCD's bus wires).
 """
 
 from __future__ import annotations
@@ -42,4 +43,33 @@ class RecentLog(list):
     @property
     def dropped(self) -> int:
         """How many of the oldest entries are no longer held."""
+        return self.total - len(self)
+
+
+class RecentBytes(bytearray):
+    """A bytearray of the most recent bytes: at least the last ``keep`` of the ``total`` appended
+    (it drops its oldest bytes once it holds twice ``keep``, like :class:`RecentLog`)."""
+
+    def __init__(self, data=b"", keep: int | None = None):
+        super().__init__(data)
+        keep = KEEP if keep is None else keep
+        if keep < 1:
+            raise ValueError(f"RecentBytes keeps at least one byte, not {keep!r}")
+        self.keep = keep
+        self.total = len(self)
+        self._trim()
+
+    def append(self, byte: int) -> None:
+        bytearray.append(self, byte)
+        self.total += 1
+        if len(self) > 2 * self.keep:
+            self._trim()
+
+    def _trim(self) -> None:
+        if len(self) > self.keep:
+            del self[:len(self) - self.keep]
+
+    @property
+    def dropped(self) -> int:
+        """How many of the oldest bytes are no longer held."""
         return self.total - len(self)
