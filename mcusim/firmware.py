@@ -86,7 +86,9 @@ class ClosedForm:
     ``valid()`` holds: whatever the declarer needs, e.g. that the handler still calls the same
     function and that no register log watches the reads the step skips. ``walk(levels)``, optional,
     does ``step(*l)`` for each ``l`` of the sequence ``levels`` in order, at once; forms sharing one
-    ``walk`` change one state, so a run of edges through any of them may be walked together."""
+    ``walk`` change one state, so a run of edges through any of them may be walked together.
+    ``levels`` supports ``len``, indexing and slicing; where it has ``cycle`` = p, its items repeat
+    every p (a quadrature walk in one direction: 4), so a walk may cost O(p), not O(len)."""
 
     __slots__ = ("handler", "nets", "step", "valid", "walk")
 

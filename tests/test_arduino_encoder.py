@@ -153,6 +153,45 @@ def test_the_declared_walk_does_what_the_closed_form_does_level_by_level(state, 
     assert (enc.encoder.state, enc.encoder.position) == stepped
 
 
+class _Repeating:
+    """``n`` levels repeating ``pattern`` (a sequence that declares its cycle, as the fast engine's
+    quadrature walks do)."""
+
+    def __init__(self, pattern, n):
+        self.pattern, self.n, self.cycle = pattern, n, len(pattern)
+
+    def __len__(self):
+        return self.n
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(self.n))]
+        if j < 0:
+            j += self.n
+        if not 0 <= j < self.n:
+            raise IndexError(j)
+        return self.pattern[j % self.cycle]
+
+
+@given(state=st.integers(0, 3), position=st.integers(-(2**31), 2**31 - 1),
+       pattern=st.lists(st.tuples(st.integers(0, 1), st.integers(0, 1)), min_size=1, max_size=6),
+       n=st.integers(0, 300))
+def test_a_walk_over_levels_that_repeat_does_what_stepping_them_one_by_one_does(state, position, pattern, n):
+    """A walk over levels that declare a cycle takes whole cycles at once: from any state, for any
+    repeating pattern (a quadrature walk, a bounce, invalid jumps) and length, across the int32
+    wrap, the state and position are those of stepping every level."""
+    core, enc = make()
+    _, step = core.forms[0]
+    levels = _Repeating(pattern, n)
+    enc.encoder.state, enc.encoder.position = state, position
+    for j in range(n):
+        step(*levels[j])
+    stepped = (enc.encoder.state, enc.encoder.position)
+    enc.encoder.state, enc.encoder.position = state, position
+    core.walks[0](levels)
+    assert (enc.encoder.state, enc.encoder.position) == stepped
+
+
 def test_pin1_leading_counts_negative_vector_13():
     core, enc = make()
     seen = []
@@ -268,3 +307,34 @@ def test_update_reads_pin_registers_directly_and_leaves_a_pwm_output_on():
     enc.read()
     assert core.read8(TCCR1A) & (1 << 7)                  # COM1A1: PWM still on D9
     assert enc.encoder.pin2_register == 0x23 and enc.encoder.pin2_bitmask == 1 << 1   # PINB, bit 1
+
+
+class _Disc:
+    """What a served walk reads of a quadrature encoder: its levels at a position."""
+
+    def __init__(self, slip):
+        self.slip = slip
+
+    def levels(self, k):
+        return ((0, 0), (1, 0), (1, 1), (0, 1))[(k - self.slip) & 3]
+
+
+@given(k=st.integers(-10**6, 10**6), d=st.sampled_from((1, -1)), m=st.integers(0, 40), swap=st.booleans(),
+       slip=st.integers(0, 3))
+def test_a_served_walk_lists_the_levels_after_each_step_and_they_repeat_every_four(k, d, m, swap, slip):
+    from mcusim.plant.encoder_served import Walk
+    disc = _Disc(slip)
+    walk = Walk(disc, k, d, m, swap)
+    want = [disc.levels(k + d * j) for j in range(1, m + 1)]
+    want = [(b, a) for a, b in want] if swap else want
+    assert len(walk) == m and list(walk) == want and walk[:] == want and walk[1:3] == want[1:3]
+    assert all(walk[j] == walk[j + walk.cycle] for j in range(m - walk.cycle))
+    if m:
+        assert walk[-1] == want[-1]
+    for bad in (m, -m - 1):
+        try:
+            walk[bad]
+        except IndexError:
+            pass
+        else:
+            raise AssertionError(f"index {bad} of {m} levels accepted")

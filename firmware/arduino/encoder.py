@@ -193,12 +193,28 @@ class Encoder:
     @staticmethod
     def update_walk(arg: EncoderInternalState, levels) -> None:
         """Simulation: what ``update_from_levels(arg, p1val, p2val)`` does for each
-        (p1val, p2val) of ``levels`` in order (the position wraps once at the end: the same int32)."""
+        (p1val, p2val) of ``levels`` in order (the position wraps once at the end: the same int32).
+        Where ``levels.cycle`` is p (the levels repeat every p steps), a long walk costs O(p)."""
         state, position = arg.state, arg.position
-        for p1val, p2val in levels:
-            s = (state & 3) | (4 if p1val else 0) | (8 if p2val else 0)
-            state = s >> 2
-            position += _STEP[s]
+        n, p = len(levels), getattr(levels, "cycle", 0)
+        if p and n > 3 * p:
+            steps = []
+            for p1val, p2val in levels[:p + 1]:
+                s = (state & 3) | (4 if p1val else 0) | (8 if p2val else 0)
+                state = s >> 2
+                steps.append(_STEP[s])
+            # a step's table entry depends on its levels and the previous step's alone, so steps
+            # p+1, p+2, ... repeat steps 1, 2, ...: whole cycles, then the start of one
+            cyc = steps[1:]
+            q, r = divmod(n - 1 - p, p)
+            position += sum(steps) + q * sum(cyc) + sum(cyc[:r])
+            p1val, p2val = levels[n - 1]
+            state = (1 if p1val else 0) | (2 if p2val else 0)
+        else:
+            for p1val, p2val in levels:
+                s = (state & 3) | (4 if p1val else 0) | (8 if p2val else 0)
+                state = s >> 2
+                position += _STEP[s]
         arg.state, arg.position = state, _int32(position)
 
     def attach_interrupt(self, pin: int, state: EncoderInternalState) -> int:

@@ -228,9 +228,8 @@ class Crossings:
                 (enc.a, enc.b), (enc.b, enc.a)):
             # one state stepped by both handlers: the walk at once. A and B change by turns on a
             # quadrature walk, A first where the first step changes it
-            levels = [enc.levels(j) for j in range(k + d, k + d * (m + 1), d)]
-            fa.walk(levels if fa.nets[0] is enc.a else [(b, a) for a, b in levels])
-            na = (m + 1) // 2 if levels[0][0] != self.la else m // 2
+            fa.walk(Walk(enc, k, d, m, fa.nets[0] is not enc.a))
+            na = (m + 1) // 2 if enc.levels(k + d)[0] != self.la else m // 2
             k += d * m
         else:
             step_a, step_b = ra.stepper(enc.a, enc.b), rb.stepper(enc.a, enc.b)
@@ -264,3 +263,29 @@ class Crossings:
             enc.a.settle(enc.name, qa)
             enc.b.settle(enc.name, qb)
             self.on_finish(self.last.nxt)
+
+
+class Walk:
+    """The output levels (A, B) after each of ``m`` steps of a quadrature walk from position ``k``
+    in direction ``d`` ((B, A) where ``swap``): a sequence whose items are computed when read.
+    They repeat every 4 steps (``cycle``), which a handler's ``walk`` may use
+    (:class:`mcusim.firmware.ClosedForm`)."""
+
+    __slots__ = ("d", "enc", "k", "m", "swap")
+    cycle = 4
+
+    def __init__(self, enc, k: int, d: int, m: int, swap: bool):
+        self.enc, self.k, self.d, self.m, self.swap = enc, k, d, m, swap
+
+    def __len__(self) -> int:
+        return self.m
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(self.m))]
+        if j < 0:
+            j += self.m
+        if not 0 <= j < self.m:
+            raise IndexError(j)
+        a, b = self.enc.levels(self.k + self.d * (j + 1))
+        return (b, a) if self.swap else (a, b)
