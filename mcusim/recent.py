@@ -17,20 +17,24 @@ from __future__ import annotations
 KEEP = 10_000
 
 
-class RecentLog(list):
-    """A list of the most recent entries: at least the last ``keep`` of the ``total`` appended."""
+class _Recent:
+    """What :class:`RecentLog` and :class:`RecentBytes` share: a sequence (the class's other base,
+    whose ``append`` is ``_add``) holding at least the last ``keep`` of the ``total`` items
+    appended, trimmed back to ``keep`` once it holds twice as many."""
+
+    _what = "entry"
 
     def __init__(self, items=(), keep: int | None = None):
         super().__init__(items)
         keep = KEEP if keep is None else keep
         if keep < 1:
-            raise ValueError(f"RecentLog keeps at least one entry, not {keep!r}")
+            raise ValueError(f"{type(self).__name__} keeps at least one {self._what}, not {keep!r}")
         self.keep = keep
         self.total = len(self)
         self._trim()
 
     def append(self, item) -> None:
-        list.append(self, item)
+        self._add(item)
         self.total += 1
         if len(self) > 2 * self.keep:
             self._trim()
@@ -42,34 +46,19 @@ class RecentLog(list):
 
     @property
     def dropped(self) -> int:
-        """How many of the oldest entries are no longer held."""
+        """How many of the oldest items are no longer held."""
         return self.total - len(self)
 
 
-class RecentBytes(bytearray):
+class RecentLog(_Recent, list):
+    """A list of the most recent entries: at least the last ``keep`` of the ``total`` appended."""
+
+    _add = list.append
+
+
+class RecentBytes(_Recent, bytearray):
     """A bytearray of the most recent bytes: at least the last ``keep`` of the ``total`` appended
     (it drops its oldest bytes once it holds twice ``keep``, like :class:`RecentLog`)."""
 
-    def __init__(self, data=b"", keep: int | None = None):
-        super().__init__(data)
-        keep = KEEP if keep is None else keep
-        if keep < 1:
-            raise ValueError(f"RecentBytes keeps at least one byte, not {keep!r}")
-        self.keep = keep
-        self.total = len(self)
-        self._trim()
-
-    def append(self, byte: int) -> None:
-        bytearray.append(self, byte)
-        self.total += 1
-        if len(self) > 2 * self.keep:
-            self._trim()
-
-    def _trim(self) -> None:
-        if len(self) > self.keep:
-            del self[:len(self) - self.keep]
-
-    @property
-    def dropped(self) -> int:
-        """How many of the oldest bytes are no longer held."""
-        return self.total - len(self)
+    _add = bytearray.append
+    _what = "byte"

@@ -70,12 +70,13 @@ def test_a_ground_station_wait_sees_every_message_in_order_across_log_trims(monk
 
 
 def test_a_log_that_keeps_nothing_is_refused():
-    try:
-        RecentLog(keep=0)
-    except ValueError as exc:
-        assert "at least one" in str(exc)
-    else:
-        raise AssertionError("keep=0 accepted")
+    for cls, what in ((RecentLog, "entry"), (RecentBytes, "byte")):
+        try:
+            cls(keep=0)
+        except ValueError as exc:
+            assert f"at least one {what}" in str(exc)
+        else:
+            raise AssertionError(f"{cls.__name__}(keep=0) accepted")
 
 
 def _sequences(sim):
