@@ -420,6 +420,40 @@ class ChunkTraj:
         self._piece(k, p)
         return self._eval(rest)
 
+    def dtheta(self, n: int) -> float:
+        """θ n ticks after the chunk start less θ at its start (the angle turned), summed from
+        small terms: the period map's powers up to the period (held: none), the piece start's
+        offset in the period, the piece's closed form. ``DcMotor._advance`` adds it to an angle
+        accumulated over many chunks with its rounding error kept; ``at`` gives the same angle
+        with the roundings of absolute values."""
+        if n == 0:
+            return 0.0
+        plan = self.plan
+        k, r = divmod(n, plan.P)
+        p = 0
+        starts = plan.starts
+        while p + 1 < len(starts) and starts[p + 1] <= r:
+            p += 1
+        d = 0.0
+        table = plan._table
+        if k and table is not None and type(self.X) is not HeldRows:
+            # (rows not from the powers are a held chunk's, whose θ does not move)
+            x0, c = self.x0, table.c
+            lin = table.linear
+            lin.ensure(k)
+            row = lin.powers[k][2].tolist()         # θ's row of [L_k | S_k]
+            d = (row[0] * x0[0] + row[1] * x0[1] + row[2] * x0[2] + row[3] * c[0] + row[4] * c[1]
+                 + row[5] * c[2])
+        if p:
+            x = self.x0 if k == 0 else self._row(k)
+            m = plan.Ql[p][2]
+            d += m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + m[3]
+        rest = r - starts[p]
+        if rest:
+            self._piece(k, p)
+            d += self._piece_memo[2].dtheta(rest * plan.inv)
+        return d
+
     def peak(self, n: int) -> float:
         """Largest |i| over the first n ticks: at every piece boundary and at the current's
         stationary point inside a piece (as the edge-by-edge engine tracks it per segment)."""

@@ -175,6 +175,10 @@ class DcMotor(PeriodicDrive):
         self._pending_time = None
         self._t0 = kernel.now
         self._x0 = (float(current), float(speed), float(angle))
+        # θ is x0[2] + _th_lo: the rounding error of the angle accumulated segment after segment
+        # (_advance), which would otherwise grow as a random walk with the run and part the two
+        # engines' angles (and the ticks of the encoder edges) on long runs
+        self._th_lo = 0.0
         self._traj = None
         self._memo = (None, 0, None)   # (segment, tick offset, state) of the last observation
         self._prev = None          # (t0, traj) of the previous segment, for state_at()
@@ -232,6 +236,8 @@ class DcMotor(PeriodicDrive):
             i, w, th = self._x0
             self._x0 = (i if current is None else float(current), w if speed is None else float(speed),
                         th if angle is None else float(angle))
+            if angle is not None:
+                self._th_lo = 0.0
             self._peak = max(self._peak, abs(self._x0[0]))
         for prov in self._providers:    # a jump of the state: whoever reads it lazily settles first
             before = getattr(prov, "before_jump", None)
@@ -421,7 +427,15 @@ class DcMotor(PeriodicDrive):
                 self.chunk_ticks += n
                 self._chunk_lived(tr, n)
             self._peak = max(self._peak, self._segment_peak(tr, n))
-            self._x0 = self._at(tr, n)
+            x = self._at(tr, n)
+            # θ: the angle turned in the segment added to the angle so far, its rounding error
+            # kept (Knuth's two-sum); the state takes the rounded sum
+            d = tr.dtheta(n) if tr.kind == "chunk" else tr.dtheta(n * self._inv_hz)
+            th, b = self._x0[2], d + self._th_lo
+            s = th + b
+            bp = s - th
+            self._th_lo = (th - (s - bp)) + (b - bp)
+            self._x0 = (x[0], x[1], s)
             if self.history_ticks and self._prev is not None:
                 hist = self._hist
                 hist.append(self._prev)

@@ -81,13 +81,30 @@ class Traj:
             d = self.d1
             return (x0[0] + (b[0] + c[0] * t) * t + 2.0 * (d[0] * e).real,
                     x0[1] + (b[1] + c[1] * t) * t + 2.0 * (d[1] * e).real,
-                    x0[2] + (b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real)
+                    x0[2] + ((b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real))
         e1 = math.expm1(self.lam1 * t)
         e2 = math.expm1(self.lam2 * t)
         d1, d2 = self.d1, self.d2
         return (x0[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
                 x0[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
-                x0[2] + (b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2)
+                x0[2] + ((b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2))
+
+    def dtheta(self, t: float) -> float:
+        """x3(t) − x3(0), the angle turned since the segment start, before it is added to x3(0):
+        the segment's contribution to an angle accumulated over many segments
+        (``DcMotor._advance`` adds it with its rounding error kept). ``eval`` adds the same value
+        to x3(0) in one rounding."""
+        if t == 0:
+            return 0.0
+        b, c = self.b, self.c
+        if self.cplx:
+            lam = self.lam1
+            re, im = lam.real * t, lam.imag * t
+            sh = math.sin(0.5 * im)
+            e = complex(math.expm1(re) * math.cos(im) - 2.0 * sh * sh, math.exp(re) * math.sin(im))
+            return (b[2] + c[2] * t) * t + 2.0 * (self.d1[2] * e).real
+        return ((b[2] + c[2] * t) * t + self.d1[2] * math.expm1(self.lam1 * t)
+                + self.d2[2] * math.expm1(self.lam2 * t))
 
     def x1_extrema(self, t_end: float):
         """Times in (0, t_end) of the stationary points of x1 that can hold its largest |x1| there.
