@@ -76,6 +76,9 @@ class MavlinkClient:
         # (tick, message) of the messages received, the recent ones (mcusim.recent): a rover sends
         # about 60 a second for as long as the client stays attached
         self.log: RecentLog = RecentLog()
+        # called with (tick, message) for each valid message as it arrives: whoever needs every
+        # message of a long run (a scenario's expectations) watches instead of reading the log
+        self.watchers: list = []
         self.errors = 0
         self._read = 0          # messages received before the next one a wait looks at (log.total)
         self._hb_period = None
@@ -105,6 +108,8 @@ class MavlinkClient:
                 self.errors += 1
             else:
                 self.log.append((tick, m))
+                for watch in self.watchers:
+                    watch(tick, m)
             m = self._rx.parse_char(b"")
 
     # --- waits (simulated time) ----------------------------------------------------------------------
@@ -118,7 +123,9 @@ class MavlinkClient:
 
     def recv_match(self, type: str | None = None, condition=None, timeout="1s"):
         """The next message not returned before (of ``type``, with ``condition(msg)`` true),
-        running the simulation up to ``timeout`` of simulated time for it."""
+        running the simulation up to ``timeout`` of simulated time for it. While it waits it sees
+        every message; one that arrived between waits and has since left ``log`` (more than
+        :data:`mcusim.recent.KEEP` messages came after it) is passed over."""
         __tracebackhide__ = True
         start = self.sim.kernel.now
         end = start + self.sim.timebase.ticks(timeout, rounding=True)

@@ -125,8 +125,8 @@ class Simulation:
 
     def connect_serial(self, uart: str, endpoint="pty", member: str | None = None):
         """Connect a UART (``"USART2"``) to a host endpoint: ``"pty"`` (a pseudo terminal; its
-        ``path`` is what pyserial or pymavlink opens), ``"buffer"`` (in memory: ``.sent``,
-        ``.feed()``), or an endpoint object. Returns the endpoint."""
+        ``path`` is what pyserial or pymavlink opens), ``"buffer"`` (in memory: ``.sent``, the recent
+        bytes sent, and ``.feed()``), or an endpoint object. Returns the endpoint."""
         from .hostserial import BufferEndpoint, PtyEndpoint
         mcu = self.members[member]["mcu"] if member else self.mcu
         periph = mcu.periph.get(uart)

@@ -165,3 +165,32 @@ mavlink = "HEARTBEAT"
     assert main(["run", "ciaa-edu", "--scenario", str(p)]) == 2
     err = capsys.readouterr().err
     assert "is later than" in err and "Traceback" not in err
+
+
+def test_an_expectation_sees_every_message_of_the_run_however_few_the_clients_log_keeps(tmp_path, monkeypatch):
+    """The ground station's log keeps the recent messages only (mcusim.recent); an end-of-run
+    expectation of a reply that came early, with the log trimmed many times since, still finds it,
+    counts what came and shows the last (it watches the messages as they arrive)."""
+    import mcusim.recent
+    monkeypatch.setattr(mcusim.recent, "KEEP", 3)
+    p = _write(tmp_path, """
+[[at]]
+time = "250ms"
+mavlink = { message = "COMMAND_LONG", target_system = 1, command = 400, param1 = 1 }
+
+[[expect]]
+name = "arming failed: no motor modules"
+mavlink = "COMMAND_ACK"
+fields = { command = 400, result = 4 }
+
+[[expect]]
+name = "not accepted"
+mavlink = "COMMAND_ACK"
+fields = { command = 400, result = 0 }
+""", head='[scenario]\nboard = "ciaa-edu"\nduration = "1.2s"\n')
+    _, sc = run_scenario(load_scenario(p))
+    assert sc._gcs.log.dropped > 20            # the reply left the log long before the end
+    assert [r.passed for r in sc.results] == [True, False]
+    assert 0.25 < float(sc.results[0].got.split()[2]) < 0.3
+    assert sc.results[1].got == "1 received, none matched; last: command=400, result=4"
+    assert not sc._gcs.watchers                 # each expectation stopped watching at its check

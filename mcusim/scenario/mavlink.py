@@ -201,15 +201,27 @@ class MavlinkExpect:
         tick = end if self.time is None else sc._ticks(tb, self.time, sc._line("expect", self.index, "time"),
                                                          f"{where}: time")
         after = tb.ticks(self.after, rounding=True)
+        # the messages of this type from `after` on, as they arrive (the client's log keeps the
+        # recent ones only): how many, the last one, the tick of the first that matches
+        seen = {"n": 0, "last": None, "hit": None}
+        name = self.cls.msgname
+
+        def watch(t, m):
+            if t >= after and m.get_type() == name:
+                seen["n"] += 1
+                seen["last"] = m
+                if seen["hit"] is None and self._matches(m):
+                    seen["hit"] = t
+        gcs.watchers.append(watch)
 
         def check():
-            seen = [(t, m) for t, m in gcs.log if t >= after and m.get_type() == self.cls.msgname]
-            hits = [t for t, m in seen if self._matches(m)]
-            if hits:
-                got = f"received at {hits[0] / tb.base_hz:.6f} s"
-            elif seen:
-                got = f"{len(seen)} received, none matched; last: {self._shown(seen[-1][1])}"
+            gcs.watchers.remove(watch)
+            hit = seen["hit"]
+            if hit is not None:
+                got = f"received at {hit / tb.base_hz:.6f} s"
+            elif seen["n"]:
+                got = f"{seen['n']} received, none matched; last: {self._shown(seen['last'])}"
             else:
                 got = "not received"
-            self.result = ExpectResult(self.name, sim.time_s, self.expected, got, bool(hits), self.line)
+            self.result = ExpectResult(self.name, sim.time_s, self.expected, got, hit is not None, self.line)
         return tick, PRIO_CHECK, check
