@@ -107,6 +107,15 @@ def apply_rows(M, x):
             c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
 
 
+def apply_rows_lo(M, x, lo: float):
+    """:func:`apply_rows` of a state whose angle is ``x[2] + lo`` (``lo`` below its last place):
+    the angle's change and ``lo`` are added to ``x[2]`` in one rounding."""
+    a, b, c = x
+    return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
+            b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),
+            c + ((M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]) + lo))
+
+
 class LinearPowers:
     """The powers of a period map's linear part, shared by every map that has it: with
     ``M = I + L`` (i, ω, θ), the table holds ``L_k = M^k − I`` and ``S_k = M^0 + … + M^(k−1)``

@@ -297,8 +297,11 @@ class ChunkTraj:
 
     kind = "chunk"
 
-    def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf, wspan=(0.0, math.inf)):
+    def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf, wspan=(0.0, math.inf), lo: float = 0.0):
         self.plan, self.x0 = plan, tuple(x0)
+        # what the motor's accumulated angle holds beyond x0[2] (``DcMotor._th_lo``): every angle
+        # the chunk reports after its start includes it, as a closed-form segment's do
+        self.lo = lo
         self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
         # wlo ≤ |ω| ≤ whi everywhere in the chunk (the screening's bounds, with the margin)
         self.wspan = (wspan[0] * (1.0 - MARGIN), wspan[1] * (1.0 + MARGIN))
@@ -311,10 +314,13 @@ class ChunkTraj:
         self._rows = {}                      # period q -> X[q] as floats
 
     def _row(self, q: int):
+        """X[q] as floats, its angle with ``lo`` added (q > 0)."""
         r = self._rows.get(q)
         if r is None:
             X = self.X
             r = self._rows[q] = X.row(q) if type(X) is HeldRows else X[q].tolist()
+            if q and self.lo:
+                r[2] += self.lo
         return r
 
     def _start(self, q: int, p: int):
@@ -324,7 +330,9 @@ class ChunkTraj:
         last bit; it only bounds the peak current.)"""
         if not p:
             return self.x0 if q == 0 else tuple(self._row(q)[:3])
-        return periodmap.apply_rows(self.plan.Ql[p], self.x0 if q == 0 else self._row(q)[:3])
+        if q == 0:
+            return periodmap.apply_rows_lo(self.plan.Ql[p], self.x0, self.lo)
+        return periodmap.apply_rows(self.plan.Ql[p], self._row(q)[:3])
 
     def first_fire(self, g, after: int):
         """First tick offset > ``after`` (≤ the chunk's end) at which the θ-only guard ``g`` fires,
@@ -335,6 +343,8 @@ class ChunkTraj:
         th = self._theta
         if th is None:
             th = self._theta = self.X[:, 2].tolist()
+            if self.lo:
+                th[1:] = [v + self.lo for v in th[1:]]      # as _row reads them
 
         def fired(v):
             h = v * ct + c0
@@ -350,11 +360,9 @@ class ChunkTraj:
         # (period q0 then; q0 + 1 is searched only if rounding made the rows non-monotone)
         q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
-        Ql = plan.Ql
         ev, hval = self._eval, pwl.hval
         h_at = lambda j: hval(g, ev(j))     # the guard j ticks into the current piece
         for q in range(q0, min(q0 + 2, self.periods)):
-            Xq = self._row(q)
             for p, pc in enumerate(plan.pieces):
                 ts = q * P + plan.starts[p]
                 te = ts + pc[0]
@@ -362,8 +370,7 @@ class ChunkTraj:
                     continue
                 # θ at the piece end (monotone in the chunk): no crossing in this piece if not fired
                 if p + 1 < npc:
-                    r = Ql[p + 1][2]
-                    the = Xq[2] + (r[0] * Xq[0] + r[1] * Xq[1] + r[2] * Xq[2] + r[3])
+                    the = self._start(q, p + 1)[2]
                 else:
                     the = th[q + 1]
                 he = the * ct + c0

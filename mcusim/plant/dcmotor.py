@@ -175,9 +175,11 @@ class DcMotor(PeriodicDrive):
         self._pending_time = None
         self._t0 = kernel.now
         self._x0 = (float(current), float(speed), float(angle))
-        # θ is x0[2] + _th_lo: the rounding error of the angle accumulated segment after segment
-        # (_advance), which would otherwise grow as a random walk with the run and part the two
-        # engines' angles (and the ticks of the encoder edges) on long runs
+        # the accumulated angle is x0[2] + _th_lo: _th_lo, below x0[2]'s last places, is the
+        # rounding error of the angle added segment after segment (_advance), which would otherwise
+        # grow as a random walk with the run and part the two engines' angles (and the ticks of
+        # the encoder edges) on long runs; every segment built from x0 includes it in the angles
+        # it gives after its start (``lo``), so the next re-base takes exactly what it gave
         self._th_lo = 0.0
         self._traj = None
         self._memo = (None, 0, None)   # (segment, tick offset, state) of the last observation
@@ -275,7 +277,7 @@ class DcMotor(PeriodicDrive):
         """Fast engine: inputs often change several times in one tick (the rover's battery and body
         steps both land on each millisecond), so the segment is rebuilt once, after the plant's
         events of this tick, from the same state and inputs the edge-by-edge engine's last rebuild
-        uses. Until then the state at this tick is the re-based x0 the old segment gives."""
+        uses. Until then the state at this tick is the x0 the old segment gives at it."""
         self._stale = True
         if self._rebuild_ev is None:
             self._rebuild_ev = self.kernel.at(self.kernel.now, self._rebuild_due, prio=PRIO_PLANT + 1)
@@ -427,15 +429,13 @@ class DcMotor(PeriodicDrive):
                 self.chunk_ticks += n
                 self._chunk_lived(tr, n)
             self._peak = max(self._peak, self._segment_peak(tr, n))
-            x = self._at(tr, n)
-            # θ: the angle turned in the segment added to the angle so far, its rounding error
-            # kept (Knuth's two-sum); the state takes the rounded sum
+            th0 = self._x0[2]
+            self._x0 = x = self._at(tr, n)
+            # θ: the state takes the angle the segment gives (what every reader saw at this tick);
+            # _th_lo keeps what the accumulated angle (the angle so far plus the angle turned in
+            # the segment, summed from small terms) holds beyond it
             d = tr.dtheta(n) if tr.kind == "chunk" else tr.dtheta(n * self._inv_hz)
-            th, b = self._x0[2], d + self._th_lo
-            s = th + b
-            bp = s - th
-            self._th_lo = (th - (s - bp)) + (b - bp)
-            self._x0 = (x[0], x[1], s)
+            self._th_lo = (th0 - x[2]) + (d + self._th_lo)
             if self.history_ticks and self._prev is not None:
                 hist = self._hist
                 hist.append(self._prev)
@@ -610,6 +610,8 @@ class DcMotor(PeriodicDrive):
         es, s = self._select(x0, drive)
         self._es, self._s = es, s
         tr = self._traj = self._build(x0, drive, es, s)
+        if tr.kind != "static":     # (a shaft at rest reports the angle it holds)
+            tr.lo = self._th_lo
         self.segments += 1
         self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
         self._grow = False

@@ -113,7 +113,7 @@ class PeriodicDrive:
             return False
         self._chunk_n = min(2 * n, CHUNK_MAX) if k == n else CHUNK_MIN
         self._es, self._s = modes[0]
-        self._traj = ChunkTraj(plan, x0, X, ib, wspan)
+        self._traj = ChunkTraj(plan, x0, X, ib, wspan, self._th_lo)
         self.segments += 1
         self._ev = self.kernel.at(now + k * P, self._on_piece_end, prio=PRIO_HW)
         self._find_passive()

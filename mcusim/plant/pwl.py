@@ -46,7 +46,7 @@ class Traj:
     eigenvalue of the conjugate pair is stored and the sum is ``2·Re(d[j][0]·(e^{lam[0]·t} − 1))``.
     """
 
-    __slots__ = ("_m2", "b", "c", "cplx", "d1", "d2", "kind", "lam1", "lam2", "x0")
+    __slots__ = ("_m2", "b", "c", "cplx", "d1", "d2", "kind", "lam1", "lam2", "lo", "x0")
 
     @property
     def m2(self):
@@ -81,19 +81,19 @@ class Traj:
             d = self.d1
             return (x0[0] + (b[0] + c[0] * t) * t + 2.0 * (d[0] * e).real,
                     x0[1] + (b[1] + c[1] * t) * t + 2.0 * (d[1] * e).real,
-                    x0[2] + ((b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real))
+                    x0[2] + ((b[2] + c[2] * t) * t + 2.0 * (d[2] * e).real + self.lo))
         e1 = math.expm1(self.lam1 * t)
         e2 = math.expm1(self.lam2 * t)
         d1, d2 = self.d1, self.d2
         return (x0[0] + (b[0] + c[0] * t) * t + d1[0] * e1 + d2[0] * e2,
                 x0[1] + (b[1] + c[1] * t) * t + d1[1] * e1 + d2[1] * e2,
-                x0[2] + ((b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2))
+                x0[2] + ((b[2] + c[2] * t) * t + d1[2] * e1 + d2[2] * e2 + self.lo))
 
     def dtheta(self, t: float) -> float:
-        """x3(t) − x3(0), the angle turned since the segment start, before it is added to x3(0):
-        the segment's contribution to an angle accumulated over many segments
-        (``DcMotor._advance`` adds it with its rounding error kept). ``eval`` adds the same value
-        to x3(0) in one rounding."""
+        """The angle turned since the segment start, before it is added to x3(0): the segment's
+        contribution to an angle accumulated over many segments (``DcMotor._advance``). ``eval``
+        gives x3(t) = x3(0) + (dtheta(t) + lo) in one rounding, ``lo`` (0 unless set) being what
+        the accumulated angle holds beyond x3(0)."""
         if t == 0:
             return 0.0
         b, c = self.b, self.c
@@ -153,6 +153,7 @@ def _make(kind, x0, b, c, lam1, lam2, d1, d2, cplx):
     tr.kind, tr.x0, tr.b, tr.c = kind, tuple(x0), b, c
     tr.lam1, tr.lam2, tr.d1, tr.d2, tr.cplx = lam1, lam2, d1, d2, cplx
     tr._m2 = None
+    tr.lo = 0.0
     return tr
 
 
