@@ -15,8 +15,8 @@ def _write(tmp_path, body, head=HEAD):
     return p
 
 
-def test_a_sent_command_is_answered_and_the_expectation_sees_the_answer_with_its_time(tmp_path):
-    p = _write(tmp_path, """
+# arm at 250 ms: refused (no motor modules), and two expectations of the answer
+ARM = """
 [[at]]
 time = "250ms"
 mavlink = { message = "COMMAND_LONG", target_system = 1, command = 400, param1 = 1 }
@@ -30,7 +30,11 @@ fields = { command = 400, result = 4 }
 name = "not accepted"
 mavlink = "COMMAND_ACK"
 fields = { command = 400, result = 0 }
+"""
 
+
+def test_a_sent_command_is_answered_and_the_expectation_sees_the_answer_with_its_time(tmp_path):
+    p = _write(tmp_path, ARM + """
 [[expect]]
 name = "nothing before it was sent"
 time = "240ms"
@@ -173,21 +177,7 @@ def test_an_expectation_sees_every_message_of_the_run_however_few_the_clients_lo
     counts what came and shows the last (it watches the messages as they arrive)."""
     import mcusim.recent
     monkeypatch.setattr(mcusim.recent, "KEEP", 3)
-    p = _write(tmp_path, """
-[[at]]
-time = "250ms"
-mavlink = { message = "COMMAND_LONG", target_system = 1, command = 400, param1 = 1 }
-
-[[expect]]
-name = "arming failed: no motor modules"
-mavlink = "COMMAND_ACK"
-fields = { command = 400, result = 4 }
-
-[[expect]]
-name = "not accepted"
-mavlink = "COMMAND_ACK"
-fields = { command = 400, result = 0 }
-""", head='[scenario]\nboard = "ciaa-edu"\nduration = "1.2s"\n')
+    p = _write(tmp_path, ARM, head='[scenario]\nboard = "ciaa-edu"\nduration = "1.2s"\n')
     _, sc = run_scenario(load_scenario(p))
     assert sc._gcs.log.dropped > 20            # the reply left the log long before the end
     assert [r.passed for r in sc.results] == [True, False]

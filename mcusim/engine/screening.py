@@ -408,17 +408,20 @@ class ChunkTraj:
             x = self._evals[j] = self._piece_memo[2].eval(j * self.plan.inv) if j else self._piece_memo[1]
         return x
 
+    def _where(self, n: int):
+        """(period, piece, ticks into the piece) of tick offset ``n``."""
+        k, r = divmod(n, self.plan.P)
+        starts = self.plan.starts
+        p = 0
+        while p + 1 < len(starts) and starts[p + 1] <= r:
+            p += 1
+        return k, p, r - starts[p]
+
     def at(self, n: int):
         """State n ticks after the chunk start."""
         if n == 0:
             return self.x0
-        plan = self.plan
-        k, r = divmod(n, plan.P)
-        p = 0
-        starts = plan.starts
-        while p + 1 < len(starts) and starts[p + 1] <= r:
-            p += 1
-        rest = r - starts[p]
+        k, p, rest = self._where(n)
         if rest == 0:
             memo = self._piece_memo
             if memo[0] == n:
@@ -430,17 +433,13 @@ class ChunkTraj:
     def dtheta(self, n: int) -> float:
         """θ n ticks after the chunk start less θ at its start (the angle turned), summed from
         small terms: the period map's powers up to the period (held: none), the piece start's
-        offset in the period, the piece's closed form. ``DcMotor._advance`` adds it to an angle
-        accumulated over many chunks with its rounding error kept; ``at`` gives the same angle
-        with the roundings of absolute values."""
+        offset in the period, the piece's closed form, without ``lo``. ``DcMotor._advance`` adds it
+        to the angle accumulated over many segments; ``at`` gives the angle itself, ``lo``
+        included, rounded at the angle's scale."""
         if n == 0:
             return 0.0
         plan = self.plan
-        k, r = divmod(n, plan.P)
-        p = 0
-        starts = plan.starts
-        while p + 1 < len(starts) and starts[p + 1] <= r:
-            p += 1
+        k, p, rest = self._where(n)
         d = 0.0
         table = plan._table
         if k and table is not None and type(self.X) is not HeldRows:
@@ -455,7 +454,6 @@ class ChunkTraj:
             x = self.x0 if k == 0 else self._row(k)
             m = plan.Ql[p][2]
             d += m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + m[3]
-        rest = r - starts[p]
         if rest:
             self._piece(k, p)
             d += self._piece_memo[2].dtheta(rest * plan.inv)
