@@ -300,8 +300,9 @@ class ChunkTraj:
     def __init__(self, plan: PeriodPlan, x0, X, ibound=math.inf, wspan=(0.0, math.inf), lo: float = 0.0):
         self.plan, self.x0 = plan, tuple(x0)
         # what the motor's accumulated angle holds beyond x0[2] (``DcMotor._th_lo``): every angle
-        # the chunk reports after its start includes it, as a closed-form segment's do
-        self.lo = lo
+        # the chunk reports after its start includes it, as a closed-form segment's do; a shaft
+        # held by static friction in every piece reports the angle it holds
+        self.lo = 0.0 if all(plan._stuck_t) else lo
         self.ibound = ibound * (1.0 + MARGIN)   # no |i| in the chunk exceeds it (peak() skips)
         # wlo ≤ |ω| ≤ whi everywhere in the chunk (the screening's bounds, with the margin)
         self.wspan = (wspan[0] * (1.0 - MARGIN), wspan[1] * (1.0 + MARGIN))

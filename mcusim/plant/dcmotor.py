@@ -610,7 +610,7 @@ class DcMotor(PeriodicDrive):
         es, s = self._select(x0, drive)
         self._es, self._s = es, s
         tr = self._traj = self._build(x0, drive, es, s)
-        if tr.kind != "static":     # (a shaft at rest reports the angle it holds)
+        if tr.b[2] or tr.c[2] or tr.d1[2] or tr.d2[2]:     # (a shaft at rest reports the angle it holds)
             tr.lo = self._th_lo
         self.segments += 1
         self._h = min(self._h * 2, self._hmax) if self._grow else self._h0
