@@ -343,9 +343,9 @@ class ChunkTraj:
         ct, c0, strict = g[2], g[3], g[4]
         th = self._theta
         if th is None:
-            th = self._theta = self.X[:, 2].tolist()
-            if self.lo:
-                th[1:] = [v + self.lo for v in th[1:]]      # as _row reads them
+            X = self.X
+            # as _row reads them: lo added after the first (numpy adds as Python does, to the bit)
+            th = self._theta = [float(X[0][2])] + (X[1:, 2] + self.lo).tolist() if self.lo else X[:, 2].tolist()
 
         def fired(v):
             h = v * ct + c0
@@ -361,6 +361,7 @@ class ChunkTraj:
         # (period q0 then; q0 + 1 is searched only if rounding made the rows non-monotone)
         q0 = max(kb - 1, after // P, 0)
         npc = len(plan.pieces)
+        Ql = plan.Ql
         ev, hval = self._eval, pwl.hval
         h_at = lambda j: hval(g, ev(j))     # the guard j ticks into the current piece
         for q in range(q0, min(q0 + 2, self.periods)):
@@ -371,7 +372,11 @@ class ChunkTraj:
                     continue
                 # θ at the piece end (monotone in the chunk): no crossing in this piece if not fired
                 if p + 1 < npc:
-                    the = self._start(q, p + 1)[2]
+                    # the next piece's start angle, as _start gives it (lo: in the row, or added here)
+                    x = self.x0 if q == 0 else self._row(q)
+                    r = Ql[p + 1][2]
+                    d = r[0] * x[0] + r[1] * x[1] + r[2] * x[2] + r[3]
+                    the = x[2] + (d + self.lo) if q == 0 else x[2] + d
                 else:
                     the = th[q + 1]
                 he = the * ct + c0
