@@ -13,8 +13,9 @@ in-memory serial endpoint on a simulated UART.
 ``mav`` is a ``pymavlink.dialects.v20.common.MAVLink`` whose file is the UART's RX line: each
 ``*_send`` puts the frame on the line now, one USART frame per byte. Received frames are parsed
 byte by byte as the USART's TX frames end; ``log`` holds ``(tick, message)`` for the valid
-messages, in order (the recent ones, :class:`mcusim.recent.RecentLog`). Waits run the simulation (simulated time; the host clock plays no part) and
-raise :class:`mcusim.testing.SimTimeout` when nothing matching arrives in time.
+messages, in order (the recent ones, :class:`mcusim.recent.RecentLog`). Waits run the simulation
+(simulated time; the host clock plays no part) and raise :class:`mcusim.testing.SimTimeout` when
+nothing matching arrives in time.
 
 ``heartbeat_hz`` (default 1; 0 for none) sends a GCS HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)
 at that rate of simulated time from the first tick on, as QGroundControl and mavros do.

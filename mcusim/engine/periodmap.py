@@ -99,17 +99,10 @@ def apply(D, x):
     return apply_rows(D.tolist(), x)
 
 
-def apply_rows(M, x):
-    """:func:`apply` with the map as nested lists (``D.tolist()``, kept by whoever applies it often)."""
-    a, b, c = x
-    return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
-            b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),
-            c + (M[2][0] * a + M[2][1] * b + M[2][2] * c + M[2][3]))
-
-
-def apply_rows_lo(M, x, lo: float):
-    """:func:`apply_rows` of a state whose angle is ``x[2] + lo`` (``lo`` below its last place):
-    the angle's change and ``lo`` are added to ``x[2]`` in one rounding."""
+def apply_rows(M, x, lo: float = 0.0):
+    """:func:`apply` with the map as nested lists (``D.tolist()``, kept by whoever applies it
+    often). ``lo``: what the angle holds beyond ``x[2]`` (below its last place), added with the
+    angle's change in one rounding."""
     a, b, c = x
     return (a + (M[0][0] * a + M[0][1] * b + M[0][2] * c + M[0][3]),
             b + (M[1][0] * a + M[1][1] * b + M[1][2] * c + M[1][3]),

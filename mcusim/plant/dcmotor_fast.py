@@ -4,7 +4,7 @@ A driver whose inputs are steady waveforms hands the motor a drive schedule (``d
 anchor, period, pieces). From the start of a piece the motor tries a *chunk*: the pieces of one period
 composed into a period map (:mod:`mcusim.engine.periodmap`), every guard screened over N periods at
 once (:mod:`mcusim.engine.screening`), and, if the first k periods are clean, one segment covering
-them (:class:`~mcusim.engine.screening.ChunkTraj`). Otherwise it runs the piece as the reference
+them (:class:`~mcusim.engine.chunk.ChunkTraj`). Otherwise it runs the piece as the reference
 engine runs a segment, screened up to the piece's end. Encoder thresholds (*passive* guards: they
 change nothing the motor sees) are located inside a chunk or a segment without ending it.
 """
@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections import OrderedDict
 
 from ..engine import periodmap, served
-from ..engine.screening import ChunkTraj, PeriodPlan
+from ..engine.chunk import ChunkTraj
+from ..engine.screening import PeriodPlan
 from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
 
