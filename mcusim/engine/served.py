@@ -371,9 +371,9 @@ def _count(kernel, streams, barrier, ticks=()) -> bool:
         return False
     if not cuts[0][0]:
         return False
-    for s, (m, L, ret) in zip(streams, cuts):
+    for s, (m, L, _) in zip(streams, cuts):
         if m:
-            s.commit_count(m, L, ret)
+            s.commit_count(m, L)
     for s in streams:
         s.finish()
     return True

@@ -17,8 +17,8 @@ class Crossings:
     ``plan`` one after the other from the planned position and output levels, ``commit`` the ones
     served; or count them up to a tick (``count_bound`` … ``commit_count``)."""
 
-    __slots__ = ("K", "cpus", "enc", "la", "last", "lb", "locate", "nxt", "on_finish", "pending", "pos", "ra",
-                 "rb", "span", "state_at", "t_max", "wlo")
+    __slots__ = ("K", "after_last", "cpus", "enc", "la", "lb", "locate", "nxt", "on_finish", "pending", "pos",
+                 "ra", "rb", "served", "span", "state_at", "t_max", "wlo")
 
     def __init__(self, enc, direction, tick, locate, state_at, ra, rb, on_finish, span=None):
         self.enc, self.locate, self.state_at, self.on_finish = enc, locate, state_at, on_finish
@@ -28,7 +28,10 @@ class Crossings:
         self.cpus = frozenset((ra.cpu, rb.cpu))
         self.pending = (tick, direction)
         self.pos, self.la, self.lb = enc._pos, enc.a.level, enc.b.level
-        self.last = None        # the last crossing committed
+        # whether a crossing was committed, and the next one after the last committed (not the
+        # committed item itself: it refers to this stream, and the cycle would leave both to the
+        # garbage collector, thousands of them per simulated second on the rover)
+        self.served, self.after_last = False, None
 
     def first_return(self) -> int:
         """The earliest tick at which the handler of the stream's first crossing could return
@@ -61,7 +64,7 @@ class Crossings:
         enc._pos = k
         enc._edges += 1
         route.serve({enc.a: qa, enc.b: qb})
-        self.last = item
+        self.served, self.after_last = True, item.nxt
 
     # ---- counted runs (served._count): the crossings up to a tick, without locating each ----
     def count_bound(self, R: int, base_hz: int) -> int:
@@ -216,9 +219,9 @@ class Crossings:
         ra, rb = self.ra, self.rb
         return max(ra.returns(t), rb.returns(t))
 
-    def commit_count(self, m: int, L, ret) -> None:
-        """Serve the first ``m`` crossings of the window (the last one at tick ``L``, its handler
-        returning at ``ret``; both None when the whole window is served, see :meth:`cut`)."""
+    def commit_count(self, m: int, L) -> None:
+        """Serve the first ``m`` crossings of the window (the last one at tick ``L``; None when
+        the whole window is served, see :meth:`cut`)."""
         enc = self.enc
         d = self.pending[1]
         k = self.pos
@@ -252,17 +255,17 @@ class Crossings:
         if k != self.K:     # cut short: the next crossing is the first after the last one served
             nt, firing = self.locate(enc._guards_at(k), L)
             self.nxt = None if nt is None else (nt, firing[0][6], firing)
-        self.last = served.Item(self, L, ret, self.nxt, None)
+        self.served, self.after_last = True, self.nxt
 
     def finish(self):
         """After the run: the outputs show the last served edge, and ``on_finish(nxt)`` gets the
         next crossing located from the last one served ((tick, direction, firing guards) or None)."""
-        if self.last is not None:
+        if self.served:
             enc = self.enc
             qa, qb = enc.levels(enc._pos)
             enc.a.settle(enc.name, qa)
             enc.b.settle(enc.name, qb)
-            self.on_finish(self.last.nxt)
+            self.on_finish(self.after_last)
 
 
 class Walk:
