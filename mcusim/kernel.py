@@ -10,10 +10,18 @@ return). That is exactly what the loop would do next: every queued event comes l
 (time, priority, sequence) order, a new event's sequence number is larger than all queued ones,
 and the run's end and ``stop`` are respected (``horizon``). ``events`` counts the events popped
 from the queue, not the work done in place of an event.
+
+While the loop runs, Python's cyclic garbage collector examines its youngest generation less
+often (:data:`GC_YOUNG`, restored after the run). The models make no reference cycles (a test runs
+every board and finds none), so all they drop is freed by reference counting; what a young
+collection would do is walk the objects that live a while (the fast engine's cached period plans,
+thousands of small lists and tuples each millisecond on the rover), ~3-5 % of the run's wall time
+at Python's default of 700 allocations.
 """
 
 from __future__ import annotations
 
+import gc
 import heapq
 
 # Priorities within one base tick: hardware state changes first, then the plant, then the CPU
@@ -26,6 +34,10 @@ PRIO_PLANT = 10
 PRIO_DISPATCH = 15
 PRIO_CPU = 20
 PRIO_OBSERVE = 30
+
+#: allocations between two collections of the youngest generation while events run (Python's
+#: default is 700); applied only where the collector is on with a smaller threshold
+GC_YOUNG = 20000
 
 
 class Event:
@@ -164,6 +176,9 @@ class Kernel:
         outer, outer_end = self.horizon, self.end
         self.horizon = t_end if stop is None else -1
         self.end = t_end
+        thresholds = gc.get_threshold()
+        if 0 < thresholds[0] < GC_YOUNG:
+            gc.set_threshold(GC_YOUNG, *thresholds[1:])
         try:
             while q and q[0][0] <= t_end:
                 time, prio, _, ev = pop(q)
@@ -190,3 +205,4 @@ class Kernel:
             self._post.clear()
             self.events += n
             self.horizon, self.end = outer, outer_end
+            gc.set_threshold(*thresholds)

@@ -40,3 +40,26 @@ def _garbage_of_run(board, overrides, seconds, engine):
 def test_a_fast_run_leaves_no_reference_cycles(board, overrides, seconds):
     kinds, n = _garbage_of_run(board, overrides, seconds, "fast")
     assert n == 0, f"{n} objects in reference cycles, of types {kinds}"
+
+
+def test_the_run_loop_collects_young_objects_less_often_and_restores_the_collectors_thresholds():
+    from mcusim.kernel import GC_YOUNG, Kernel
+    from mcusim.time import TimeBase
+
+    seen = []
+    k = Kernel(TimeBase([16_000_000]))
+    k.at(10, lambda: seen.append(gc.get_threshold()))
+    old = gc.get_threshold()
+    try:
+        gc.set_threshold(700, 10, 10)
+        k.run_until(20)
+        assert seen == [(GC_YOUNG, 10, 10)]
+        assert gc.get_threshold() == (700, 10, 10)
+        # a collector switched off by threshold 0 stays off, and a larger threshold stays as it is
+        for thr in ((0, 10, 10), (GC_YOUNG * 2, 5, 5)):
+            gc.set_threshold(*thr)
+            k.at(k.now + 1, lambda: seen.append(gc.get_threshold()))
+            k.run_until(k.now + 5)
+            assert seen[-1] == thr and gc.get_threshold() == thr
+    finally:
+        gc.set_threshold(*old)
