@@ -97,21 +97,16 @@ def release(cap: StartupCapture) -> None:
 
 
 def _matcher(filter):
-    """(match, could) for ``filter``, or (None, None) for no filter: ``match(member, periph, reg)``
-    decides one register, ``could(member, periph)`` whether any register of a peripheral may
-    match (peripherals that cannot are not hooked at all)."""
+    """``match(member, periph, reg)`` deciding one register for ``filter``, or None for no filter."""
     if filter is None:
-        return None, None
+        return None
     if isinstance(filter, str):
         filter = filter.replace(";", ",").split(",")
     pats = [str(x).strip().upper() for x in filter if str(x).strip()]
 
-    def glob(pat):
-        return any(c in pat for c in "*?[")
-
     def one(pat, member, periph, reg):
         full = f"{periph}.{reg}"
-        if glob(pat):
+        if any(c in pat for c in "*?["):
             return any(fnmatch.fnmatchcase(x, pat) for x in (periph, member, full, f"{member}.{periph}",
                                                                f"{member}.{full}"))
         if "." not in pat:
@@ -121,43 +116,39 @@ def _matcher(filter):
     def match(member, periph, reg):
         m, p, r = member.upper(), periph.upper(), reg.upper()
         return any(one(pat, m, p, r) for pat in pats)
+    return match
 
-    def could(member, periph):
-        m, p = member.upper(), periph.upper()
-        for pat in pats:
-            parts = pat.split(".")
-            heads = parts[:1] + (parts[1:2] if parts[0] == m or (glob(parts[0]) and
-                                                                  fnmatch.fnmatchcase(m, parts[0])) else [])
-            for h in heads:
-                if h in (p, m) or (glob(h) and (fnmatch.fnmatchcase(p, h) or fnmatch.fnmatchcase(m, h))):
-                    return True
-        return False
-    return match, could
+
+def _hooks(match, member: str, p) -> bool:
+    """Whether some register of peripheral ``p`` of ``member`` matches: only those peripherals
+    carry a hook. (Decided from the names of its registers, not the peripheral's name alone: a
+    glob's ``?`` or ``*`` also matches the dot, and "mcm1.TIMER1" once hooked every peripheral
+    of mcm1, whose ports then counted as watched and kept its encoder edges from being served.)"""
+    return any(match(member, p.name, r.name) for r in p.REGISTERS)
 
 
 def _check_filter(sim, filter) -> None:
-    """Every filter pattern must be able to match a peripheral (a typo would log nothing)."""
+    """Every filter pattern must match a register (a typo would log nothing)."""
     if filter is None:
         return
     pats = filter.replace(";", ",").split(",") if isinstance(filter, str) else list(filter)
     if not any(str(x).strip() for x in pats):
         raise ConfigError("register log filter is empty: name peripherals or registers (TIM3, TIM3.CCR1, "
                           "GPIO*), or leave the filter out to log every access")
-    names = [(m, p.name) for m, member in sim.members.items() for p in _bus_peripherals(member["mcu"])]
+    periphs = [(m, p) for m, member in sim.members.items() for p in _bus_peripherals(member["mcu"])]
     for pat in (str(x).strip() for x in pats):
-        could = _matcher([pat])[1] if pat else None
-        if could is not None and not any(could(m, p) for m, p in names):
-            known = sorted({p for _, p in names})
-            raise ConfigError(f"register log filter {pat!r} matches no peripheral; peripherals: "
-                              f"{', '.join(known)}" + (f"; boards: {', '.join(sim.members)}"
-                                                       if len(sim.members) > 1 else ""))
+        if not pat or any(_hooks(_matcher([pat]), m, p) for m, p in periphs):
+            continue
         parts = pat.split(".")
-        if len(parts) >= 2 and not any(c in parts[-1] for c in "*?["):   # PERIPH.REG: the register exists
-            regs = {r.name.upper() for member in sim.members.values() for p in _bus_peripherals(member["mcu"])
-                    if p.name.upper() == parts[-2].upper() for r in getattr(p, "REGISTERS", ())}
-            if regs and not any(r.startswith(parts[-1].upper()) for r in regs):   # (a prefix is allowed)
+        if len(parts) >= 2 and not any(c in parts[-1] for c in "*?["):   # PERIPH.REG: the register exists?
+            regs = {r.name.upper() for _, p in periphs if p.name.upper() == parts[-2].upper() for r in p.REGISTERS}
+            if regs:
                 raise ConfigError(f"register log filter {pat!r}: {parts[-2]} has no register {parts[-1]}; "
                                   f"registers: {', '.join(sorted(regs))}")
+        known = sorted({p.name for _, p in periphs})
+        raise ConfigError(f"register log filter {pat!r} matches no peripheral; peripherals: "
+                          f"{', '.join(known)}" + (f"; boards: {', '.join(sim.members)}"
+                                                   if len(sim.members) > 1 else ""))
 
 
 def _addresses(bus) -> tuple[dict, dict]:
@@ -197,7 +188,7 @@ class RegisterLog:
         self.kernel = sim.kernel
         self.base_hz = sim.timebase.base_hz
         self.lines = 0
-        self._match, self._could = _matcher(filter)
+        self._match = _matcher(filter)
         _check_filter(sim, filter)
         if hasattr(path_or_file, "write"):
             self._file, self._own, self.path = path_or_file, False, None
@@ -217,7 +208,7 @@ class RegisterLog:
                 digits = 4 if getattr(p, "BUS_WIDTH", 4) == 1 else 8
                 info = (mname, period, bases.get(id(p)), singles, digits, {}, caller)
                 self._info[id(p)] = info
-                if self._could is not None and not self._could(mname, p.name):
+                if self._match is not None and not _hooks(self._match, mname, p):
                     continue
                 p.access_log = self._make_hook(p, info)
                 self._hooked.append(p)
