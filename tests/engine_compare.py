@@ -185,15 +185,34 @@ def run_both(tmp_path: Path, argv: list[str], vcd: bool = True) -> dict:
     return out
 
 
+def _output(d: Path, name: str) -> Path | None:
+    """What a run left of its output ``name``: the file, or the ``.part`` a failed run leaves (the
+    same up to where it stopped), or None."""
+    for path in (d / name, d / (name + ".part")):
+        if path.exists():
+            return path
+    return None
+
+
 def differences(tmp_path: Path, argv: list[str], vcd: bool = True) -> list[str]:
-    """Everything in which the two engines' outputs differ (empty when they agree)."""
+    """Everything in which the two engines' outputs differ (empty when they agree). A run that
+    fails (a fault found during it, exit status 1) leaves its traces as ``.part`` files up to
+    where it stopped: those are compared, and so are the exit statuses."""
     runs = run_both(tmp_path, argv, vcd)
     (code_r, ref), (code_f, fast) = runs["reference"], runs["fast"]
     problems = []
     if code_r != code_f:
         problems.append(f"exit status: reference {code_r}, fast {code_f}")
-    va, types = read_vcd(ref / "t.vcd") if vcd else ({}, {})
-    vb, _ = read_vcd(fast / "t.vcd") if vcd else ({}, {})
+    outs = {}
+    for name in ("t.vcd", "t.jsonl", "t.json") if vcd else ("t.jsonl", "t.json"):
+        a, b = _output(ref, name), _output(fast, name)
+        if (a is None) != (b is None):
+            problems.append(f"{name}: only the {'fast' if a is None else 'reference'} engine's run wrote it")
+        outs[name] = (a, b) if a is not None and b is not None else None
+    if outs.get("t.vcd") is None:
+        vcd = False
+    va, types = read_vcd(outs["t.vcd"][0]) if vcd else ({}, {})
+    vb, _ = read_vcd(outs["t.vcd"][1]) if vcd else ({}, {})
     for name in sorted(set(va) | set(vb)):
         a, b = va.get(name), vb.get(name)
         if a is None or b is None:
@@ -210,16 +229,16 @@ def differences(tmp_path: Path, argv: list[str], vcd: bool = True) -> list[str]:
             problems.append(f"VCD {name}: change #{first} differs: reference {pa}, fast {pb} "
                             f"({len(a)} and {len(b)} changes)")
     if vcd and not problems:    # the same changes: then also written the same, byte for byte
-        ba, bb = scalar_lines(ref / "t.vcd"), scalar_lines(fast / "t.vcd")
+        ba, bb = scalar_lines(outs["t.vcd"][0]), scalar_lines(outs["t.vcd"][1])
         if ba != bb:
             i = next((i for i, (p, q) in enumerate(zip(ba, bb)) if p != q), min(len(ba), len(bb)))
             problems.append(f"VCD digital lines differ at timestamp #{i}: reference "
                             f"{ba[i] if i < len(ba) else 'end'}, fast {bb[i] if i < len(bb) else 'end'}")
-    la = (ref / "t.jsonl").read_text().splitlines()
-    lb = (fast / "t.jsonl").read_text().splitlines()
-    if la != lb:
-        problems.extend(_log_differences(la, lb))
-    sa = json.loads((ref / "t.json").read_text())
-    sb = json.loads((fast / "t.json").read_text())
-    _compare_values("summary", sa, sb, problems)
+    if outs["t.jsonl"] is not None:
+        la, lb = (p.read_text().splitlines() for p in outs["t.jsonl"])
+        if la != lb:
+            problems.extend(_log_differences(la, lb))
+    if outs["t.json"] is not None:
+        sa, sb = (json.loads(p.read_text()) for p in outs["t.json"])
+        _compare_values("summary", sa, sb, problems)
     return problems

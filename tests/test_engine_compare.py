@@ -1,11 +1,12 @@
-"""The engine comparison reads a VCD real variable as the step function it encodes.
+"""The engine comparison (tests/engine_compare.py): it reads a VCD real variable as the step
+function it encodes, and it compares runs that fail as far as they got.
 
 A VCD holds only the changes of a real variable. Two engines whose values agree to the last bit
 but one (a motor current resting at its steady state) record changes at different samples; the
 signals are still equal within the tolerance, and must compare equal. A real difference must not.
 """
 
-from engine_compare import REL, real_mismatch
+from engine_compare import REL, differences, real_mismatch
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -33,3 +34,14 @@ def test_a_difference_above_the_tolerance_at_any_sample_is_reported(values, k, r
 
 def test_a_sample_only_one_engine_has_is_reported():
     assert real_mismatch([(0, 1.0)], [(50, 1.0)]) is not None
+
+
+def test_runs_that_both_fail_are_compared_up_to_where_they_stopped(tmp_path):
+    """A fault found during the run (the bridge's OCD output driving EN against the MCU: a
+    contention, exit status 1) leaves .part traces; the comparison reads them instead of failing
+    on the missing files, and both engines stop at the same tick with the same traces."""
+    argv = ["nucleo-f746", "--duration", "20ms", "--set", "bridgeB.drive_en=true", "--set", "bridgeB.I_ocd=2",
+            "--set", "/motor2/set_pos=30"]
+    assert differences(tmp_path, argv) == []
+    for engine in ("reference", "fast"):
+        assert (tmp_path / engine / "t.vcd.part").exists() and not (tmp_path / engine / "t.json").exists()
