@@ -12,7 +12,7 @@ and the run's end and ``stop`` are respected (``horizon``). ``events`` counts th
 from the queue, not the work done in place of an event.
 
 While the loop runs, Python's cyclic garbage collector examines its youngest generation less
-often (:data:`GC_YOUNG`, restored after the run). The models make no reference cycles (a test runs
+often (:data:`GC_YOUNG`, put back when the last of the runs in progress ends). The models make no reference cycles (a test runs
 every board and finds none), so all they drop is freed by reference counting; what a young
 collection would do is walk the objects that live a while (the fast engine's cached period plans,
 thousands of small lists and tuples each millisecond on the rover), ~3-5 % of the run's wall time
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import gc
 import heapq
+import threading
 
 # Priorities within one base tick: hardware state changes first, then the plant, then the CPU
 # (firmware sees the hardware state of its tick), then observers such as trace samplers.
@@ -38,6 +39,33 @@ PRIO_OBSERVE = 30
 #: allocations between two collections of the youngest generation while events run (Python's
 #: default is 700); applied only where the collector is on with a smaller threshold
 GC_YOUNG = 20000
+
+
+class _YoungCollections:
+    """Raise the youngest generation's threshold while any run loop runs, and put back what was
+    set before when the last one ends (runs nest, and simulations may run in several threads)."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._saved = None
+
+    def enter(self) -> None:
+        with self._lock:
+            if self._depth == 0:
+                self._saved = t = gc.get_threshold()
+                if 0 < t[0] < GC_YOUNG:
+                    gc.set_threshold(GC_YOUNG, *t[1:])
+            self._depth += 1
+
+    def leave(self) -> None:
+        with self._lock:
+            self._depth -= 1
+            if self._depth == 0:
+                gc.set_threshold(*self._saved)
+
+
+_young_collections = _YoungCollections()
 
 
 class Event:
@@ -176,9 +204,7 @@ class Kernel:
         outer, outer_end = self.horizon, self.end
         self.horizon = t_end if stop is None else -1
         self.end = t_end
-        thresholds = gc.get_threshold()
-        if 0 < thresholds[0] < GC_YOUNG:
-            gc.set_threshold(GC_YOUNG, *thresholds[1:])
+        _young_collections.enter()
         try:
             while q and q[0][0] <= t_end:
                 time, prio, _, ev = pop(q)
@@ -205,4 +231,4 @@ class Kernel:
             self._post.clear()
             self.events += n
             self.horizon, self.end = outer, outer_end
-            gc.set_threshold(*thresholds)
+            _young_collections.leave()

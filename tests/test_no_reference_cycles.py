@@ -63,3 +63,40 @@ def test_the_run_loop_collects_young_objects_less_often_and_restores_the_collect
             assert seen[-1] == thr and gc.get_threshold() == thr
     finally:
         gc.set_threshold(*old)
+
+
+def test_runs_in_two_threads_leave_the_collectors_thresholds_as_they_were():
+    """Runs overlap in threads (and nest): the threshold set before the first one is put back
+    when the last one ends, whichever ends first (a run that ended first once put back the
+    threshold it had found, and the other then left its own raised one behind)."""
+    import threading
+
+    from mcusim.kernel import GC_YOUNG, Kernel
+    from mcusim.time import TimeBase
+
+    old = gc.get_threshold()
+    try:
+        gc.set_threshold(700, 10, 10)
+        a_started, b_started, a_done = threading.Event(), threading.Event(), threading.Event()
+        ka, kb = Kernel(TimeBase([16_000_000])), Kernel(TimeBase([16_000_000]))
+        seen = []
+
+        def in_b():             # b's run goes on after a's has ended
+            b_started.set()
+            assert a_done.wait(10)
+            seen.append(gc.get_threshold()[0])
+        ka.at(5, lambda: (a_started.set(), b_started.wait(10)))
+        kb.at(5, in_b)
+
+        def run_a():
+            ka.run_until(10)
+            a_done.set()
+        t = threading.Thread(target=run_a)
+        t.start()
+        assert a_started.wait(10)
+        kb.run_until(10)
+        t.join(10)
+        assert seen == [GC_YOUNG]
+        assert gc.get_threshold() == (700, 10, 10)
+    finally:
+        gc.set_threshold(*old)
