@@ -12,11 +12,11 @@ and the run's end and ``stop`` are respected (``horizon``). ``events`` counts th
 from the queue, not the work done in place of an event.
 
 While the loop runs, Python's cyclic garbage collector examines its youngest generation less
-often (:data:`GC_YOUNG`, put back when the last of the runs in progress ends). The models make no reference cycles (a test runs
-every board and finds none), so all they drop is freed by reference counting; what a young
-collection would do is walk the objects that live a while (the fast engine's cached period plans,
-thousands of small lists and tuples each millisecond on the rover), ~3-5 % of the run's wall time
-at Python's default of 700 allocations.
+often (:data:`GC_YOUNG`, put back when the last of the runs in progress ends). The models make no
+reference cycles (a test runs every board and finds none), so all they drop is freed by reference
+counting; what a young collection would do is walk the objects that live a while (the fast
+engine's cached period plans, thousands of small lists and tuples each millisecond on the rover),
+~3-5 % of the run's wall time at Python's default of 700 allocations.
 """
 
 from __future__ import annotations
