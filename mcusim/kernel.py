@@ -37,32 +37,37 @@ PRIO_CPU = 20
 PRIO_OBSERVE = 30
 
 #: allocations between two collections of the youngest generation while events run (Python's
-#: default is 700); applied only where the collector is on with a smaller threshold
+#: default is 700); applied only where the threshold is smaller and not 0 (0: collections off)
 GC_YOUNG = 20000
 
 
 class _YoungCollections:
     """Raise the youngest generation's threshold while any run loop runs, and put back what was
-    set before when the last one ends (runs nest, and simulations may run in several threads)."""
+    set before when the last one ends (runs nest, and simulations may run in several threads).
+    Only a threshold this raised is put back: one that code run by an event (or another thread)
+    set meanwhile stays, and so do the older generations' thresholds."""
 
     def __init__(self):
         self._lock = threading.Lock()
         self._depth = 0
-        self._saved = None
+        self._saved = None          # the youngest generation's threshold before, if raised
 
     def enter(self) -> None:
         with self._lock:
             if self._depth == 0:
-                self._saved = t = gc.get_threshold()
-                if 0 < t[0] < GC_YOUNG:
+                t = gc.get_threshold()
+                self._saved = t[0] if 0 < t[0] < GC_YOUNG else None
+                if self._saved is not None:
                     gc.set_threshold(GC_YOUNG, *t[1:])
             self._depth += 1
 
     def leave(self) -> None:
         with self._lock:
             self._depth -= 1
-            if self._depth == 0:
-                gc.set_threshold(*self._saved)
+            if self._depth == 0 and self._saved is not None:
+                t = gc.get_threshold()
+                if t[0] == GC_YOUNG:
+                    gc.set_threshold(self._saved, *t[1:])
 
 
 _young_collections = _YoungCollections()

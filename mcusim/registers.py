@@ -112,6 +112,11 @@ class Peripheral:
         self.value = {r.name: r.reset for r in self.REGISTERS}
         self.access_log = None  # callable(kind, periph, reg, value, old) set by a register-access tracer
 
+    def register_names(self) -> list[str]:
+        """The names of every register the bus can reach (a register log filter is matched
+        against them); a model that decodes registers from the offset lists those too."""
+        return [r.name for r in self.REGISTERS]
+
     # --- hardware-side access (no access rules) ---------------------------------------------
     def set_bits(self, reg: str, mask: int) -> None:
         self.value[reg] |= mask

@@ -124,7 +124,7 @@ def _hooks(match, member: str, p) -> bool:
     carry a hook. (Decided from the names of its registers, not the peripheral's name alone: a
     glob's ``?`` or ``*`` also matches the dot, and "mcm1.TIMER1" once hooked every peripheral
     of mcm1, whose ports then counted as watched and kept its encoder edges from being served.)"""
-    return any(match(member, p.name, r.name) for r in p.REGISTERS)
+    return any(match(member, p.name, r) for r in p.register_names())
 
 
 def _check_filter(sim, filter) -> None:
@@ -139,10 +139,19 @@ def _check_filter(sim, filter) -> None:
     for pat in (str(x).strip() for x in pats):
         if not pat or any(_hooks(_matcher([pat]), m, p) for m, p in periphs):
             continue
-        parts = pat.split(".")
+        parts = pat.upper().split(".")
+        if len(sim.members) > 1 and len(parts) >= 2 and parts[0] in {m.upper() for m in sim.members}:
+            member, parts = parts[0], parts[1:]     # MEMBER.PERIPH[.REG]: that board's peripherals
+            names = {p.name.upper() for m, p in periphs if m.upper() == member}
+            if not any(c in parts[0] for c in "*?[") and parts[0] not in names:
+                raise ConfigError(f"register log filter {pat!r}: {member.lower()} has no peripheral "
+                                  f"{parts[0]}; its peripherals: {', '.join(sorted(names))}")
+            periphs_named = [p for m, p in periphs if m.upper() == member]
+        else:
+            periphs_named = [p for _, p in periphs]
         if len(parts) >= 2 and not any(c in parts[-1] for c in "*?["):   # PERIPH.REG: the register exists?
-            regs = {r.name.upper() for _, p in periphs if p.name.upper() == parts[-2].upper() for r in p.REGISTERS}
-            if regs:
+            regs = {r.upper() for p in periphs_named if p.name.upper() == parts[-2] for r in p.register_names()}
+            if regs and not any(r.startswith(parts[-1]) for r in regs):     # (a prefix is allowed)
                 raise ConfigError(f"register log filter {pat!r}: {parts[-2]} has no register {parts[-1]}; "
                                   f"registers: {', '.join(sorted(regs))}")
         known = sorted({p.name for _, p in periphs})

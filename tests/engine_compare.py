@@ -203,6 +203,9 @@ def differences(tmp_path: Path, argv: list[str], vcd: bool = True) -> list[str]:
     problems = []
     if code_r != code_f:
         problems.append(f"exit status: reference {code_r}, fast {code_f}")
+    if code_r not in (0, 1) or _output(ref, "t.jsonl") is None:
+        # (exit status 2: the command line was refused, nothing ran; a typo must not compare equal)
+        problems.append(f"the reference run did not run (exit status {code_r}): nothing to compare")
     outs = {}
     for name in ("t.vcd", "t.jsonl", "t.json") if vcd else ("t.jsonl", "t.json"):
         a, b = _output(ref, name), _output(fast, name)

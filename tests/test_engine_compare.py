@@ -45,3 +45,10 @@ def test_runs_that_both_fail_are_compared_up_to_where_they_stopped(tmp_path):
     assert differences(tmp_path, argv) == []
     for engine in ("reference", "fast"):
         assert (tmp_path / engine / "t.vcd.part").exists() and not (tmp_path / engine / "t.json").exists()
+
+
+def test_a_command_line_that_is_refused_does_not_compare_equal(tmp_path):
+    """Both engines refuse a mistyped command line (exit status 2) and write nothing: that is not
+    agreement, and a generated case with a typo must not pass as one."""
+    problems = differences(tmp_path, ["nucleo-f746", "--duration", "1ms", "--set", "nosuch.key=1"])
+    assert any("did not run" in p for p in problems), problems

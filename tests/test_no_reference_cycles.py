@@ -61,6 +61,11 @@ def test_the_run_loop_collects_young_objects_less_often_and_restores_the_collect
             k.at(k.now + 1, lambda: seen.append(gc.get_threshold()))
             k.run_until(k.now + 5)
             assert seen[-1] == thr and gc.get_threshold() == thr
+        # a threshold set by code an event runs stays after the run
+        gc.set_threshold(700, 10, 10)
+        k.at(k.now + 1, lambda: gc.set_threshold(5000, 20, 20))
+        k.run_until(k.now + 5)
+        assert gc.get_threshold() == (5000, 20, 20)
     finally:
         gc.set_threshold(*old)
 
@@ -96,6 +101,7 @@ def test_runs_in_two_threads_leave_the_collectors_thresholds_as_they_were():
         assert a_started.wait(10)
         kb.run_until(10)
         t.join(10)
+        assert not t.is_alive()
         assert seen == [GC_YOUNG]
         assert gc.get_threshold() == (700, 10, 10)
     finally:

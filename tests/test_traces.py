@@ -185,6 +185,32 @@ def test_a_member_qualified_filter_hooks_only_that_members_peripheral():
     log.close()
 
 
+def test_a_filter_matches_the_pin_registers_a_model_decodes_from_the_offset():
+    """The LPC43xx GPIO makes its byte and word pin registers (B<k>, W<k>) when first accessed:
+    a filter naming them (a glob too) hooks the GPIO and logs those accesses."""
+    sim = mcusim.load("ciaa-edu", firmware=False)
+    out = io.StringIO()
+    log = RegisterLog(sim, out, filter="GPIO.W*,gpio.b3")
+    gpio = sim.mcu.periph["GPIO"]
+    base = next(base for base, _size, p in sim.mcu.bus._entries if p is gpio)
+    sim.mcu.write32(base + 0x1000 + 4 * 3, 1)       # W3: GPIO0[3]
+    sim.mcu.read8(base + 3)                          # B3
+    sim.mcu.read8(base + 4)                          # B4: not asked for
+    log.close()
+    assert [x["reg"] for x in map(json.loads, out.getvalue().splitlines())] == ["GPIO.W3", "GPIO.B3"]
+
+
+@pytest.mark.parametrize("filt,says", [
+    ("mcm1.USART2.FCR", "mcm1 has no peripheral USART2"),
+    ("rcm.TWI", "rcm has no peripheral TWI"),
+    ("mcm1.TIMER1.TCNT9", "TIMER1 has no register TCNT9"),
+])
+def test_a_member_qualified_filter_naming_what_that_board_lacks_says_so(filt, says):
+    sim = mcusim.load("elementall")
+    with pytest.raises(ConfigError, match=says):
+        RegisterLog(sim, io.StringIO(), filter=filt)
+
+
 def _log_lines(board, filt, overrides=None):
     out = io.StringIO()
     sim = mcusim.load(board, overrides=overrides or {})

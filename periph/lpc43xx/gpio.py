@@ -178,6 +178,12 @@ class Gpio(Peripheral):
     def _read_out(self, stored):
         return self.out[self._cur]
 
+    def register_names(self) -> list[str]:
+        """The port registers and the pin registers B<k>/W<k> (k = 32·port + pin), which are
+        decoded from the offset and made when first accessed."""
+        pins = [32 * p + n for p in range(self.ports) for n in range(self.npins)]
+        return super().register_names() + [f"B{k}" for k in pins] + [f"W{k}" for k in pins]
+
     # --- bus ---------------------------------------------------------------------------------------
     def _decode(self, offset: int, size: int, address: int):
         """-> (Register, port, pin or None); BusFault for anything that is not a register."""
