@@ -139,7 +139,8 @@ def _check_run_args(args) -> None:
         if args.register_log is None:
             raise ConfigError("--register-log-filter needs --register-log FILE (or '-' for stdout)")
         if not args.register_log_filter.replace(",", "").replace(";", "").strip():
-            raise ConfigError("--register-log-filter is empty: name peripherals or registers (TIM3, "
+            opt = "--filter" if args.cmd == "trace" else "--register-log-filter"
+            raise ConfigError(f"{opt} is empty: name peripherals or registers (TIM3, "
                               "TIM3.CCR1, GPIO*), or leave it out to log every access")
     # a sampling grid without the output it is for would be ignored: say so instead
     if getattr(args, "sample", None) is not None and not (args.csv or args.plot):

@@ -73,6 +73,11 @@ def test_a_register_filter_naming_a_missing_register_is_refused(capsys):
     assert "TIM1 has no register CCR9" in msg
 
 
+def test_an_empty_trace_filter_is_refused_under_its_own_name(capsys):
+    msg = _one_error(capsys, ["trace", "nucleo-f746", "--duration", "1ms", "--filter", " , "])
+    assert msg.startswith("mcusim: error: --filter is empty"), msg
+
+
 def test_set_values_take_lists_and_hex_integers():
     assert parse_value("8,9") == [8, 9] and parse_value("[8, 9]") == [8, 9]
     assert parse_value("0x08") == 8 and parse_value("0b101") == 5
