@@ -162,6 +162,30 @@ def test_driver_overtemperature_is_reported_and_stops_the_motor(module):
     assert sim.firmware.duty == 0
 
 
+def test_a_step_from_standstill_that_draws_the_bridges_current_limit_latches_the_driver_fault(module):
+    """From standstill the PID's first duty for 30 rpm drives the motor's inrush into the BTS7960's
+    low-side current limit (I_CLL 43 A): in limitation its IS pin sources the fault current, the
+    sketch's IS sample reads above is_fault_counts, and it latches the fault and stops the drive
+    (the README's pro-mini section). The same speed reached in steps of 15 rpm trips nothing."""
+    sim, host = module
+    bridge = sim.part("ibt2")
+    host.write("SETPOINT", rpm_to_counts(30.0))
+    sim.run(seconds=0.3)
+    assert bridge.cl_trips > 0 and sim.part("motor").peak_current >= bridge.params.I_CLL
+    status = host.read("STATUS")
+    assert status & P.ST_OVERCURRENT and not status & P.ST_PID_ENABLED
+    assert sim.firmware.duty == 0
+
+    sim = mcusim.load("pro-mini")
+    sim.run(seconds=0.01)
+    host = Host(sim)
+    for rpm in (15.0, 30.0):
+        host.write("SETPOINT", rpm_to_counts(rpm))
+        sim.run(seconds=1.0)
+    assert sim.part("ibt2").cl_trips == 0 and not host.read("STATUS") & P.ST_OVERCURRENT
+    assert sim.part("motor").output_speed * 60 / (2 * 3.141592653589793) == pytest.approx(30.0, abs=1.5)
+
+
 @settings(max_examples=4, deadline=None)
 @example(v=5.0, sample_ms=2)
 @given(v=st.floats(2.0, 15.0), sample_ms=st.sampled_from([2, 5, 10]))
