@@ -6,7 +6,7 @@ but one (a motor current resting at its steady state) record changes at differen
 signals are still equal within the tolerance, and must compare equal. A real difference must not.
 """
 
-from engine_compare import REL, differences, real_mismatch
+from engine_compare import REL, differences, real_mismatch, scalar_mismatch
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -52,3 +52,18 @@ def test_a_command_line_that_is_refused_does_not_compare_equal(tmp_path):
     agreement, and a generated case with a typo must not pass as one."""
     problems = differences(tmp_path, ["nucleo-f746", "--duration", "1ms", "--set", "nosuch.key=1"])
     assert any("did not run" in p for p in problems), problems
+
+
+def test_an_edge_one_base_tick_apart_is_reported_with_the_rounding_tie_mark():
+    """As the adversarial hunt met it on the rover (base tick 1225.49 ps, times rounded to ps):
+    still a difference, marked as the rounding tie it may be; other moves are not marked."""
+    tick = lambda: 1e12 / 816e6
+    ref = [(0, "0"), (524445001225, "1"), (524445100000, "0")]
+    one = [(0, "0"), (524445000000, "1"), (524445100000, "0")]
+    assert "rounding tie" in scalar_mismatch("mcm1.PD3", ref, one, tick)
+    two = [(0, "0"), (524444997549, "1"), (524445100000, "0")]       # two ticks early
+    assert "rounding tie" not in scalar_mismatch("mcm1.PD3", ref, two, tick)
+    extra = one + [(524445200000, "1")]                             # an edge more
+    assert "rounding tie" not in scalar_mismatch("mcm1.PD3", ref, extra, tick)
+    level = [(0, "0"), (524445001225, "0"), (524445100000, "0")]     # another level
+    assert "rounding tie" not in scalar_mismatch("mcm1.PD3", ref, level, tick)
