@@ -137,7 +137,10 @@ def _check_filter(sim, filter) -> None:
                           "GPIO*), or leave the filter out to log every access")
     periphs = [(m, p) for m, member in sim.members.items() for p in _bus_peripherals(member["mcu"])]
     for pat in (str(x).strip() for x in pats):
-        if not pat or any(_hooks(_matcher([pat]), m, p) for m, p in periphs):
+        if not pat:
+            continue
+        match = _matcher([pat])
+        if any(_hooks(match, m, p) for m, p in periphs):
             continue
         parts = pat.upper().split(".")
         if len(sim.members) > 1 and len(parts) >= 2 and parts[0] in {m.upper() for m in sim.members}:

@@ -17,8 +17,8 @@ class Crossings:
     ``plan`` one after the other from the planned position and output levels, ``commit`` the ones
     served; or count them up to a tick (``count_bound`` … ``commit_count``)."""
 
-    __slots__ = ("K", "after_last", "cpus", "enc", "la", "lb", "locate", "nxt", "on_finish", "pending", "pos",
-                 "ra", "rb", "served", "span", "state_at", "t_max", "wlo")
+    __slots__ = ("K", "after_last", "committed", "cpus", "enc", "la", "lb", "locate", "nxt", "on_finish",
+                 "pending", "pos", "ra", "rb", "span", "state_at", "t_max", "wlo")
 
     def __init__(self, enc, direction, tick, locate, state_at, ra, rb, on_finish, span=None):
         self.enc, self.locate, self.state_at, self.on_finish = enc, locate, state_at, on_finish
@@ -31,7 +31,7 @@ class Crossings:
         # whether a crossing was committed, and the next one after the last committed (not the
         # committed item itself: it refers to this stream, and the cycle would leave both to the
         # garbage collector, thousands of them per simulated second on the rover)
-        self.served, self.after_last = False, None
+        self.committed, self.after_last = False, None
 
     def first_return(self) -> int:
         """The earliest tick at which the handler of the stream's first crossing could return
@@ -64,7 +64,7 @@ class Crossings:
         enc._pos = k
         enc._edges += 1
         route.serve({enc.a: qa, enc.b: qb})
-        self.served, self.after_last = True, item.nxt
+        self.committed, self.after_last = True, item.nxt
 
     # ---- counted runs (served._count): the crossings up to a tick, without locating each ----
     def count_bound(self, R: int, base_hz: int) -> int:
@@ -255,12 +255,12 @@ class Crossings:
         if k != self.K:     # cut short: the next crossing is the first after the last one served
             nt, firing = self.locate(enc._guards_at(k), L)
             self.nxt = None if nt is None else (nt, firing[0][6], firing)
-        self.served, self.after_last = True, self.nxt
+        self.committed, self.after_last = True, self.nxt
 
     def finish(self):
         """After the run: the outputs show the last served edge, and ``on_finish(nxt)`` gets the
         next crossing located from the last one served ((tick, direction, firing guards) or None)."""
-        if self.served:
+        if self.committed:
             enc = self.enc
             qa, qb = enc.levels(enc._pos)
             enc.a.settle(enc.name, qa)
