@@ -177,6 +177,7 @@ def test_make_check_fails_on_a_stale_committed_image(tmp_path):
     assert "controlmotor.elf differs from a fresh build" in r.stdout + r.stderr
 
 
+@pytest.mark.heavy
 @needs_toolchain
 def test_the_readmes_make_commands_run_as_documented(tmp_path):
     """Every command of firmware/controlmotor_c/README.md, in a copy of the folder."""

@@ -1,5 +1,7 @@
 """Invariant 2: the same inputs give the same trace, byte for byte."""
 
+import pytest
+
 import mcusim
 
 
@@ -27,6 +29,7 @@ def _rover_trace(path):
     return path.read_bytes(), sim.kernel.events, sim.summary()["pose"]
 
 
+@pytest.mark.heavy
 def test_five_mcus_on_one_queue_give_byte_identical_vcd(tmp_path):
     a, ev_a, pose_a = _rover_trace(tmp_path / "a.vcd")
     b, ev_b, pose_b = _rover_trace(tmp_path / "b.vcd")

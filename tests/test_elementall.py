@@ -55,6 +55,7 @@ def test_boot_with_one_module_missing_never_enables_the_motors_and_reports_which
     assert sim.members["mcm3"]["firmware"] is None  # the absent module has no firmware running
 
 
+@pytest.mark.heavy
 def test_estop_cuts_the_drive_in_hardware_and_the_setpoints_stay_zero_until_a_new_command():
     sim = rover(**{"cmd_vel.linear": 0.15})
     fw = sim.firmware
@@ -85,6 +86,7 @@ def test_estop_cuts_the_drive_in_hardware_and_the_setpoints_stay_zero_until_a_ne
     assert sim.summary()["pose"]["x"] - x_release > 0.005     # and the rover drives again
 
 
+@pytest.mark.heavy
 def test_watchdog_zeroes_the_setpoints_when_commands_stop_arriving():
     sim = rover(**{"cmd_vel.linear": 0.1})
     fw = sim.firmware
@@ -110,6 +112,7 @@ def _lag_bound(speed):
     return speed * (CTRL + 0.0023) + 2 * math.pi * R / CPR_WHEEL
 
 
+@pytest.mark.heavy
 def test_odometry_after_a_straight_run_and_after_a_turn_in_place_is_within_the_sampling_bound():
     # straight: 0.3 m/s for 2 s (ramped at 0.5 m/s^2)
     sim = rover(**{"cmd_vel.linear": 0.3})
@@ -123,6 +126,7 @@ def test_odometry_after_a_straight_run_and_after_a_turn_in_place_is_within_the_s
     assert s["firmware"]["faults"] == [] and s["battery_min_v"] < 12.7   # the bank sagged while accelerating
 
 
+@pytest.mark.heavy
 def test_odometry_of_a_turn_in_place_matches_the_icr_model_and_shows_the_uncalibrated_error():
     sim = rover(**{"cmd_vel.angular": 0.5})
     sim.run(seconds="1.6s")

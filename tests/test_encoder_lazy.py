@@ -161,6 +161,7 @@ def specs(draw):
                           "motor1.load_torque": draw(st.sampled_from([0.0, 0.3, -0.3]))}}
 
 
+@pytest.mark.heavy
 @settings(max_examples=max(10, N // 2), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(spec=specs())
 def test_lazy_encoder_counting_gives_the_reference_register_values(spec):

@@ -31,15 +31,18 @@ def _agree(tmp_path, argv, vcd=True):
                                                  ("nucleo-f746", "thesis_master_slave", "0.3s"),
                                                  ("pro-mini", "promini_velocity_load", "0.8s"),
                                                  ("elementall", "mavlink_drive", "0.45s")])
+@pytest.mark.heavy
 def test_engines_agree_on_shipped_scenario(tmp_path, board, name, duration):
     _agree(tmp_path, [board, "--scenario", str(SCENARIOS / f"{name}.toml"), "--duration", duration])
 
 
+@pytest.mark.heavy
 def test_engines_agree_on_the_nucleo_bench_command(tmp_path):
     _agree(tmp_path, ["nucleo-f746", "--duration", "0.3s", "--set", "/motor1/set_pos=9.42477796076938",
                       "--set", "/motor2/set_pos=-1.5707963267948966"])
 
 
+@pytest.mark.heavy
 def test_engines_write_the_quick_start_vcd_the_same_byte_for_byte(tmp_path):
     """Both motors' PWM edges fall on one tick from 0.18 s on; the fast engine expands them from
     their waveforms in another order than the reference engine toggles them. The VCD writes a
@@ -97,12 +100,14 @@ def test_engines_agree_on_generated_nucleo_runs(tmp_path_factory, p1, p2, load, 
                  "--set", f"motor2.J={5e-6 * j_scale!r}", "--set", f"bridgeA.I_ocd={i_ocd!r}"])
 
 
+@pytest.mark.heavy
 def test_engines_agree_on_the_promini_bench_command(tmp_path):
     """The bench's fixed command (20 rpm): TimerOne's PWM as a steady waveform, the BTS7960's drive
     schedule and whole-period chunks with the encoder's edges located inside them."""
     _agree(tmp_path, ["pro-mini", "--duration", "0.3s", "--set", "velocity=20"])
 
 
+@pytest.mark.heavy
 def test_engines_agree_on_the_elementall_bench_command(tmp_path):
     """Four pro-minis driving the rover from the battery: the supply charge integrated over chunks
     feeds the battery model, whose voltage steps feed the bridges back."""
@@ -130,6 +135,7 @@ publish = { velocity = -25 }
 """
 
 
+@pytest.mark.heavy
 def test_engines_agree_through_bts7960_current_limit_trips(tmp_path):
     """A reversal after the PWM has run in whole-period chunks drives the current into a lowered
     limit: the trip tick (located inside the period where it happens), the IS fault current the
@@ -147,6 +153,7 @@ def test_engines_agree_through_bts7960_current_limit_trips(tmp_path):
 @example(v=0.0625, load=0.0, i_cl=60.0, j_scale=0.5, ms=105)
 @given(v=st.floats(-80.0, 80.0), load=st.floats(-25.0, 25.0), i_cl=st.sampled_from([60.0, 15.0, 9.0]),
        j_scale=st.sampled_from([0.5, 1.0, 4.0]), ms=st.integers(60, 200))
+@pytest.mark.heavy
 def test_engines_agree_on_generated_promini_runs(tmp_path_factory, v, load, i_cl, j_scale, ms):
     """Velocity steps (either direction, from standstill), load torques helping or opposing the
     motion, current limits from the default to low enough to trip, light and heavy shafts."""
@@ -187,6 +194,7 @@ def test_engines_agree_on_hand_turns_near_and_above_the_isr_bound_edge_rate(tmp_
 @example(lin=-0.28431521530798437, ang=0.05, fault="silent", t_fault=227, reverse=False)
 @given(lin=st.floats(-0.6, 0.6), ang=st.floats(-0.5, 0.5), fault=st.sampled_from(sorted(FAULTS)),
        t_fault=st.integers(150, 260), reverse=st.booleans())
+@pytest.mark.heavy
 def test_engines_agree_on_generated_rover_runs(tmp_path_factory, lin, ang, fault, t_fault, reverse):
     """The rover under generated commands: drive and turn, a reversal, and one of an E-stop press,
     a motor module dropping off the I2C bus, or a battery sag (state of charge and an extra load),

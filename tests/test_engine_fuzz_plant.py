@@ -51,6 +51,7 @@ def scen(draw):
     return segs, n_end, mk, bk
 
 
+@pytest.mark.heavy
 @settings(max_examples=N, deadline=None, suppress_health_check=list(HealthCheck))
 @given(scen())
 def test_plant_fast_equals_reference(s):

@@ -193,6 +193,7 @@ def before_ki(modules):
     return modules[0].pid.get_ki()
 
 
+@pytest.mark.heavy
 def test_armed_body_velocity_setpoints_drive_the_rover_with_odometry_reported_then_the_watchdog_stops_it():
     sim, gcs = rover()
     fw = sim.firmware

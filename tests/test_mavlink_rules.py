@@ -62,6 +62,7 @@ def handled_message(draw):
     return cls(*args)
 
 
+@pytest.mark.heavy
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(handled_message(), min_size=1, max_size=12))
 def test_any_field_value_of_a_handled_message_leaves_the_controller_answering(msgs):

@@ -4,6 +4,8 @@ tables) are bounded, and nothing accumulates per event without a trace asking fo
 import subprocess
 import sys
 
+import pytest
+
 # the quick start's run (the profile's [run.set]: both motors to new angles, then holding)
 SCRIPT = """
 import resource
@@ -22,6 +24,7 @@ def _peak_kb(seconds: float) -> int:
     return int(out.split()[-1])
 
 
+@pytest.mark.heavy
 def test_a_10s_run_without_traces_peaks_within_15_percent_of_a_half_second_run():
     short, long_ = _peak_kb(0.5), _peak_kb(10.0)
     assert long_ <= 1.15 * short, (short, long_)

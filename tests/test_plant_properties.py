@@ -4,6 +4,7 @@ at their first firing tick, and the closed form equals the matrix exponential.""
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
@@ -23,6 +24,7 @@ QUAD = [(0, 0), (1, 0), (1, 1), (0, 1)]
 segments = st.lists(st.tuples(st.sampled_from(sorted(STATES)), st.integers(1, 3000)), min_size=1, max_size=10)
 
 
+@pytest.mark.heavy
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(segments, st.floats(-600, 600), st.floats(-3, 3), st.floats(-2.0, 2.0))
 def test_encoder_count_equals_floor_difference_and_each_edge_brackets_its_threshold(seq, w0, i0, th0):

@@ -5,6 +5,7 @@ the whole log."""
 
 import collections
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -108,6 +109,7 @@ def _grown(board, overrides, seconds, gcs=None):
     return [(n0, len(o), repr(o)[:120]) for k, (n0, o) in before.items() if len(o) > max(n0 + 50, 100)]
 
 
+@pytest.mark.heavy
 def test_no_list_reachable_from_a_run_grows_with_its_length(monkeypatch):
     # a small KEEP makes the bound show in short runs: at the default each log holds up to 20 000
     monkeypatch.setattr(mcusim.recent, "KEEP", 40)

@@ -252,6 +252,7 @@ def test_examples_are_shipped():
     ("promini_velocity_load", "1.1s"),
     ("mavlink_drive", "1.2s"),
 ])
+@pytest.mark.heavy
 def test_example_passes_its_expectations(name, duration):
     sc = load_scenario(EXAMPLES / f"{name}.toml")
     sc.duration = duration

@@ -11,6 +11,7 @@ ExtInt's lost-edge counts, the firmware's encoder state, the plant encoder and t
 
 import math
 
+import pytest
 from engine_compare import ROVER_FAULTS
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -138,6 +139,7 @@ def _compare_counted_with_planned(build, seconds: float, step: float):
     return a
 
 
+@pytest.mark.heavy
 def test_counted_runs_of_the_rovers_four_wheels_end_where_no_handler_is_in_flight():
     """Four streams on four CPUs: a run's cut moves back to a stream's last crossing whose handler
     would still run at the first crossing left out (else that crossing's event, still queued, would
@@ -179,6 +181,7 @@ def _with_task_steps(sim):
 @example(v=-20.0, work=20_000, idle=200, sample_ms=10)
 @given(v=st.floats(-25.0, 25.0), work=st.integers(1, 60_000), idle=st.integers(1, 3000),
        sample_ms=st.sampled_from([1, 2, 10]))
+@pytest.mark.heavy
 def test_loop_passes_end_at_the_same_ticks_when_the_edges_inside_them_are_served(v, work, idle, sample_ms):
     """Loop passes of any length against edges of any rate: each pass's end lands before, at and
     after the served edges' dispatches (a dispatch at the pass's end tick still comes first, one
@@ -392,6 +395,7 @@ def test_detaching_and_attaching_the_encoder_isr_again_serves_again():
     assert served(fast) > before + 100
 
 
+@pytest.mark.heavy
 def test_the_rover_serves_the_edges_of_wheels_that_turn_alike_and_agrees():
     """The ElementAll rover driving straight: the two wheels of a side turn alike, so their
     encoders' edges fall on the same ticks, on two modules. One served run takes both modules'
@@ -404,6 +408,7 @@ def test_the_rover_serves_the_edges_of_wheels_that_turn_alike_and_agrees():
 
 
 
+@pytest.mark.heavy
 def test_runs_pass_over_the_mid_burst_frame_ends_of_the_rovers_telemetry_and_agree(monkeypatch):
     """The controller sends MAVLink telemetry in bursts of 16 bytes (the THRE handler fills the
     FIFO); a frame end in the middle of a burst changes nothing outside its USART, so a served run
@@ -429,6 +434,7 @@ def test_runs_pass_over_the_mid_burst_frame_ends_of_the_rovers_telemetry_and_agr
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(lin=st.floats(-0.6, 0.6), ang=st.floats(-0.5, 0.5), fault=st.sampled_from(sorted(ROVER_FAULTS)),
        t_fault=st.integers(160, 260), unequal=st.booleans())
+@pytest.mark.heavy
 def test_served_edges_agree_on_generated_rover_runs(tmp_path, lin, ang, fault, t_fault, unequal):
     """Drive and turn, an E-stop, a module dropping off the bus or a battery sag while the wheels
     turn, with wheels alike or one heavier (then their edges fall apart)."""

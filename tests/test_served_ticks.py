@@ -9,6 +9,7 @@ found nothing are skipped. Encoder edges next to an overflow are queued as the C
 
 import contextlib
 
+import pytest
 from engine_compare import differences
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
@@ -142,6 +143,7 @@ def _compare_at(stops, build):
        sample_ms=st.sampled_from([10, 100]), prescale=st.sampled_from([64, 8]), gap=st.integers(1, 5),
        offsets=st.lists(st.tuples(st.booleans(), st.integers(-320, 720), st.integers(0, 340)),
                         min_size=60, max_size=60))
+@pytest.mark.heavy
 def test_runs_stopped_inside_an_overflows_reach_see_the_edge_by_edge_timeline(v, idle, sample_ms, prescale, gap,
                                                                              offsets):
     """Stop both engines near each overflow, from before the encoder handler that would delay it
@@ -181,6 +183,7 @@ def test_the_timer0_flags_stored_after_an_overflow_delayed_by_an_encoder_handler
         sketch.OpenRoverMcm.loop = loop
 
 
+@pytest.mark.heavy
 @settings(max_examples=2, deadline=None)
 @given(offsets=st.lists(st.integers(-320, 720), min_size=48, max_size=48))
 def test_rover_runs_stopped_inside_the_modules_overflows_reach_see_the_edge_by_edge_timeline(offsets):

@@ -275,6 +275,7 @@ def test_hardware_side_register_changes_are_not_logged(tmp_path):
 
 # --- a system: register log, CSV, plot and gtkw of the rover ----------------------------------------
 
+@pytest.mark.heavy
 def test_rover_register_log_csv_plot_and_gtkw(tmp_path):
     sim, _ = load_logged("elementall", tmp_path / "rover.jsonl", overrides={"cmd_vel.linear": 0})
     tr = CsvTrace(sim, tmp_path / "rover.csv", sample="10ms", keep=True)
