@@ -177,7 +177,9 @@ class SteadyDrive:
     def _chunk_coeffs(self, tr, t_c, sched, R):
         anchor, P, pieces = sched
         ph = (t_c - anchor) % P
-        j = next(k for k, (o, _) in enumerate(pieces) if o == ph)
+        # the piece the chunk starts in (at its start, or inside it: then the plan's last piece is
+        # that piece's beginning, index j again)
+        j = max(k for k, (o, _) in enumerate(pieces) if o <= ph)
         out = []
         for p, pc in enumerate(tr.plan.pieces):
             legs = pieces[(j + p) % len(pieces)][1]

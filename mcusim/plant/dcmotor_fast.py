@@ -69,16 +69,24 @@ class PeriodicDrive:
         return (periodmap.full_flow(eig, A, u, tau), tuple(abs(a) for a in A),
                 (abs(u[0]), abs(u[1])), (A[0], A[1], u[0]))
 
-    def _try_chunk(self, sched, j, x0) -> bool:
-        """From the start of piece ``j``: advance whole periods if no guard can fire in them."""
+    def _try_chunk(self, sched, j, x0, into: int = 0) -> bool:
+        """From ``into`` ticks into piece ``j`` (0: its start): advance whole periods if no guard can
+        fire in them. A period that starts inside piece ``j`` ends with that piece's first ``into``
+        ticks (an input change inside a piece: the rover's 1 ms battery and body steps, a duty
+        written at the bottom of a phase-correct period, start the chunk at once)."""
         _, P, pieces = sched
         npc = len(pieces)
-        plan_pieces, modes = [], []
-        x = x0
+        order = []      # (piece index, ticks) of one period from here
         for q in range(npc):
             idx = (j + q) % npc
-            off, drive, bguards = pieces[idx]
-            ticks = (pieces[idx + 1][0] if idx + 1 < npc else P) - off
+            order.append((idx, (pieces[idx + 1][0] if idx + 1 < npc else P) - pieces[idx][0]))
+        if into:
+            order[0] = (j, order[0][1] - into)
+            order.append((j, into))
+        plan_pieces, modes = [], []
+        x = x0
+        for idx, ticks in order:
+            drive = pieces[idx][1]
             es, s = self._select(x, drive)
             if es == 0:
                 return False        # discontinuous conduction: a guard event every period
@@ -86,13 +94,13 @@ class PeriodicDrive:
             plan_pieces.append((ticks, flow, absA, absu, drive, (es, s), lin))
             modes.append((es, s))
             x = periodmap.apply_rows(rows, x)
-        key = (P, pieces, j, tuple(modes), self._pkey, self.params.R)
+        key = (P, pieces, j, into, tuple(modes), self._pkey, self.params.R)
         plans = self._plans
         plan = plans.get(key)
         if plan is None:
             for q, pc in enumerate(plan_pieces):     # the guards only when the plan is new
                 ticks, flow, absA, absu, drive, mode, lin = pc
-                bguards = pieces[(j + q) % npc][2]
+                bguards = pieces[order[q][0]][2]
                 plan_pieces[q] = (ticks, flow, absA, absu,
                                   tuple(self._mode_guards(*mode, drive)) + tuple(bguards), drive, mode, lin)
             plan = PeriodPlan(plan_pieces, P, self._inv_hz, CHUNK_MAX,
@@ -294,7 +302,7 @@ class PeriodicDrive:
         j = len(pieces) - 1
         while pieces[j][0] > ph:
             j -= 1
-        if ph == pieces[j][0] and now >= self._chunk_retry and self._try_chunk(sched, j, x0):
+        if now >= self._chunk_retry and self._try_chunk(sched, j, x0, ph - pieces[j][0]):
             return
         # one piece, edge by edge: the reference engine's segment, screened up to the piece end
         n_end = (pieces[j + 1][0] if j + 1 < len(pieces) else P) - ph

@@ -103,6 +103,13 @@ class Crossings:
         t0, d = self.pending
         if t_max < t0:
             return 0
+        # the crossing due at t0 is one threshold, as ``plan`` requires: a jump of the angle can
+        # leave the encoder several behind, and edge by edge on_guard's loop emits them all at
+        # t0 (the handlers then lose most); counted, they would be spread out and all served
+        k, st = self.pos + d, self.enc.step
+        th0 = self.state_at(t0)[2]
+        if (th0 >= (k + 1) * st) if d > 0 else (th0 < k * st):
+            return None
         th = self.state_at(t_max)[2]
         if self.wlo <= 1e-12 * (abs(th) + 1.0) * base_hz:
             return None         # θ may gain less per tick than its float rounding
