@@ -2,7 +2,9 @@
 
 The board runs the fixed command of its profile's ``[bench.set]`` table (else ``[run.set]``) for a
 simulated duration, ``repeat`` times; the figures are those of the median run (wall time of
-``run()`` only: loading and building the board are not counted).
+``run()`` only: loading and building the board are not counted). ``faults`` lists what the firmware
+reported in any run (``mcusim bench`` then exits with status 1: such figures are not the board's
+usual work).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
         fast["reference_realtime_factor"] = ref["realtime_factor"]
         fast["reference_wall_s_median"] = ref["wall_s_median"]
         fast["speedup"] = fast["realtime_factor"] / ref["realtime_factor"]
+        fast["faults"] = sorted(set(fast["faults"]) | set(ref["faults"]))
         fast["engine"] = "both"
         return fast
     from .board import read_profile
@@ -63,9 +66,11 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
         finally:
             sim.close()
         wall = time.perf_counter() - t0
-        eng = sim.summary()["engine"]
+        summary = sim.summary()
+        eng = summary["engine"]
         runs.append((wall, sim.kernel.events, sim.time_s, eng["fast_fraction"],
-                     getattr(sim.mcu.cpu, "instructions", None), eng["served_isrs"]))
+                     getattr(sim.mcu.cpu, "instructions", None), eng["served_isrs"],
+                     list((summary.get("firmware") or {}).get("faults") or [])))
     walls = [r[0] for r in runs]
     wall = statistics.median(walls)
     events, sim_s = runs[0][1], runs[0][2]
@@ -74,6 +79,8 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
             "simulated_s": sim_s, "wall_s_median": wall, "wall_s_min": min(walls), "wall_s_max": max(walls),
             "realtime_factor": sim_s / wall, "events": events, "events_per_wall_s": events / wall,
             "repeat": repeat, "engine": engine, "fast_fraction": runs[0][3], "served_isrs": runs[0][5],
+            # what the firmware reported (a fault stops the work the bench means to measure)
+            "faults": sorted({f for r in runs for f in r[6]}),
             **({"instructions": runs[0][4], "instructions_per_wall_s": runs[0][4] / wall}
                if runs[0][4] is not None else {})}
 

@@ -271,6 +271,10 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
             if key in spec:
                 v = spec[key]
                 allowed = kind.ref_kinds.get(key, ())
+                if isinstance(v, list):
+                    twice = next((x for i, x in enumerate(v) if x in v[:i]), None)
+                    if twice is not None:       # (a body's wheel, a battery's load: each counts once)
+                        raise _PartError(f"part {name}: {key} lists {twice!r} twice", name, key, None, where)
                 args[key] = ([ref(x, name, key, allowed) for x in v] if isinstance(v, list)
                              else ref(v, name, key, allowed))
         required, optional = kind.terminals

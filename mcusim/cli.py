@@ -396,6 +396,10 @@ def cmd_bench(args) -> int:
     if r["engine"] == "both":
         print(f"reference engine: real-time factor {r['reference_realtime_factor']:.3f}; speedup "
               f"{r['speedup']:.1f}x (fast over reference, measured in this process)")
+    if r["faults"]:
+        print(f"mcusim bench: the firmware reported: {', '.join(r['faults'])}; these are the figures of "
+              f"a run that stopped doing its work (exit status 1)", file=sys.stderr)
+        return 1
     return 0
 
 

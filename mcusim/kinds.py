@@ -119,6 +119,12 @@ class _Table(Param):
                 out[k] = self.item.check(v, f"{what}.{k}")
         return out
 
+    def check_file(self, value, what):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                self.item.check_file(v, f"{what}.{k}")
+        return self.check(value, what)
+
     def describe(self) -> str:
         return f"table, {self.range_text()}" + (f": {self.doc}" if self.doc else "")
 

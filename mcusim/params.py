@@ -149,6 +149,18 @@ class Param:
                 raise ConfigError(f"{what} = {_show(value)}: must be {self.range_text()}")
         return out
 
+    def check_file(self, value, what: str):
+        """:meth:`check` for a value written in a profile (TOML has types of its own): a number, a
+        true/false or a list written as text (``counts_per_rev = "48"``) is refused, not read as
+        one; a ``--set`` value arrives as text and goes to :meth:`check`."""
+        if isinstance(value, str) and self.kind in (int, float, bool, tuple, list):
+            want = {int: "an integer", float: "a number", bool: "true or false"}.get(self.kind, "a list")
+            raise ConfigError(f"{what} = {_show(value)}: expected {want}, not text (write it without quotes)")
+        if isinstance(value, (tuple, list)) and self.items is not None and self.kind in (tuple, list):
+            for i, v in enumerate(value):
+                self.items.check_file(v, f"{what}[{i}]")
+        return self.check(value, what)
+
     def describe(self) -> str:
         """One line for documentation and ``mcusim keys``: type, default, range, doc."""
         kind = {bool: "true/false", int: "integer", float: "number", str: "text", tuple: "list",

@@ -159,7 +159,7 @@ def check_params(prof, kind, spec: dict, skip, where, table, index) -> dict:
             raise prof.err(f"{where}: unknown parameter {k!r} of kind {kind.name} "
                            f"(known: {', '.join(sorted(kind.params)) or 'none'})", table, index, k)
         try:
-            out[k] = kind.params[k].check(v, k)
+            out[k] = kind.params[k].check_file(v, k)
         except ConfigError as exc:
             raise prof.err(f"{where}: {exc}", table, index, k) from None
     for k, p in kind.params.items():
@@ -203,7 +203,7 @@ def _check_board_tables(prof: Profile) -> None:
         raise prof.err("[core]: missing kind = \"...\" (" + ", ".join(CORES) + ")", "core")
     for k, v in core.items():
         try:
-            _CORE[k].check(v, f"[core] {k}")
+            _CORE[k].check_file(v, f"[core] {k}")
         except ConfigError as exc:
             raise prof.err(str(exc), "core", None, k) from None
 
@@ -345,7 +345,7 @@ def _check_firmware(prof: Profile) -> None:
                            "firmware", None, k)
         if params is not None:
             try:
-                (params[k] if isinstance(params[k], Param) else Param(params[k])).check(v, f"firmware.{k}")
+                (params[k] if isinstance(params[k], Param) else Param(params[k])).check_file(v, f"firmware.{k}")
             except ConfigError as exc:
                 raise prof.err(str(exc), "firmware", None, k) from None
 

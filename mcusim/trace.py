@@ -115,7 +115,7 @@ class VcdTrace:
     def _var(self, group: str, scope: str, name: str, var_type: str, **kw):
         var = self.w.register_var(scope, name, var_type, **kw)
         self._order[var] = len(self.signals)
-        self.signals.append((group, f"{scope}.{name}", var_type))
+        self.signals.append((group, gtkwave_name(scope, name), var_type))
         return var
 
     def _write(self, var, ps: int, value) -> None:
@@ -303,6 +303,14 @@ class VcdTrace:
 GTKW_ANALOG_ROWS = 3   # extra rows of height under each analog trace
 
 
+def gtkwave_name(scope: str, name: str) -> str:
+    """The name GTKWave gives a VCD variable ``name`` of ``scope``: the scope's path, a dot and
+    the name, which is escaped with a backslash where it holds a dot itself (GTKWave's hierarchy
+    delimiter; a layout naming ``board.plant.motor1.angle_rad`` shows nothing, silently, where
+    GTKWave has ``board.plant.\\motor1.angle_rad``)."""
+    return f"{scope}.\\{name}" if "." in name else f"{scope}.{name}"
+
+
 def write_gtkw(vcd_trace: VcdTrace, path=None, *, dumpfile=None, savefile=None) -> str:
     """Write a GTKWave save file (``.gtkw``) for ``vcd_trace``: by default next to the VCD, with
     the same name and the suffix ``.gtkw``. Returns the path written.
@@ -311,8 +319,8 @@ def write_gtkw(vcd_trace: VcdTrace, path=None, *, dumpfile=None, savefile=None) 
     ``elementall.mcm1`` ...), one per I2C bus with its SCL and SDA (``ciaa-edu.i2c0``), then
     ``interrupts`` with the interrupt lines of every board, ``plant`` with the plant's
     wires (protection flags, the enable line) and reals (motor angle and current, drawn as
-    analog steps). Signals are named by their full hierarchical name (``nucleo-f746.irq.TIM3``,
-    ``nucleo-f746.plant.motor1.angle_rad``). The dump file is named relative to the layout's
+    analog steps). Signals are named as GTKWave names them (:func:`gtkwave_name`:
+    ``nucleo-f746.irq.TIM3``, ``nucleo-f746.plant.\\motor1.angle_rad``). The dump file is named relative to the layout's
     folder (GTKWave looks there), so the pair can be moved together; ``dumpfile`` and
     ``savefile`` give the names the files will have if they are written under other names first.
     """

@@ -334,3 +334,35 @@ def test_a_mistake_inside_a_members_own_board_file_is_named_at_that_file_first(t
     p.write_text(text.replace('board = "pro-mini"', f'board = "{pm}"', 1))
     err = _err(capsys, ["run", str(p), "--duration", "1ms"])
     assert err.startswith(f"mcusim: error: {pm}:"), err
+
+
+def test_a_part_listed_twice_in_a_list_of_parts_is_refused(tmp_path, capsys):
+    """A rover body given one wheel motor twice ran with exit status 0: the body set that motor's
+    load twice and never turned (yaw 0 on a turning run). Each listed part counts once."""
+    text = shipped_text("rover-diff")
+    start = text.index("motors = [")
+    old = text[start:text.index("]", start) + 1]
+    first = old[old.index('"'):old.index('"', old.index('"') + 1) + 1]
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace(old, f"motors = [{first}, {first}]", 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:start].count("\n") + 1
+    assert f"s.toml:{line}: part body: motors lists {first.strip(chr(34))!r} twice" in err, err
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("counts_per_rev = 64", 'counts_per_rev = "64"',
+     "encoder1: counts_per_rev = '64': expected an integer, not text (write it without quotes)"),
+    ("irqs = { update = 29", 'irqs = { update = "29"',
+     "irqs.update = '29': expected an integer, not text (write it without quotes)"),
+])
+def test_a_number_written_as_text_in_a_profile_is_refused(tmp_path, capsys, old, new, message):
+    """A TOML string where a number belongs ran as the number: boards.md says every value has
+    its type (a --set value is text and is read as one)."""
+    text = shipped_text("nucleo-f746")
+    assert old in text
+    p = tmp_path / "b.toml"
+    p.write_text(text.replace(old, new, 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    line = text[:text.index(old)].count("\n") + 1
+    assert f"b.toml:{line}:" in err and message in err, err

@@ -209,3 +209,21 @@ def test_the_bench_progress_line_is_cleared_before_an_error(monkeypatch, capsys)
 def test_an_option_before_the_command_is_pointed_after_it_if_the_command_takes_it(capsys, argv, hint):
     assert main(argv) == 2
     assert hint in capsys.readouterr().err
+
+
+def test_bench_of_a_run_whose_firmware_faults_exits_1_and_says_so(tmp_path, capsys):
+    """A bench command that drives the pro-mini into its driver fault (a set point far above
+    ~20 rpm from standstill draws the BTS7960's current limit: README) reported a normal
+    real-time factor with exit status 0, for a motor that stopped after the first milliseconds."""
+    from mcusim.board import shipped_text
+    text = shipped_text("pro-mini")
+    start = text.index("[bench.set]")
+    line_end = text.index("velocity = ", start)
+    p = tmp_path / "pm.toml"
+    p.write_text(text[:line_end] + "velocity = 60" + text[text.index("\n", line_end):])
+    out = tmp_path / "b.json"
+    assert main(["bench", str(p), "--duration", "200ms", "--repeat", "1", "--json", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "the firmware reported: driver" in err and "exit status 1" in err
+    assert json.loads(out.read_text())["faults"] == ["driver"]
+    assert main(["bench", "pro-mini", "--duration", "50ms", "--repeat", "1", "-q"]) == 0

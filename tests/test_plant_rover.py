@@ -213,6 +213,8 @@ def test_bad_body_configurations_are_config_errors():
         RoverBody(k, motors=ws, sides="LRLR", step="20ms")
     with pytest.raises(ConfigError, match="directions"):
         RoverBody(k, motors=ws, sides="LRLR", directions=[1, 1, 1, 2])
+    with pytest.raises(ConfigError, match="listed twice"):
+        RoverBody(k, motors=[ws[0], ws[1], ws[0], ws[3]], sides="LRLR")
     with pytest.raises(ConfigError, match="not a wheel motor"):
         RoverBody(k, motors=[*ws[:3], Net("oops")], sides="LRLR")
 
