@@ -46,12 +46,12 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
         try:
             sim = load(board, overrides=dict(scenario), engine=engine, firmware=firmware)
         except ConfigError as exc:
-            if firmware is None or not scenario:
-                raise
+            key = next((k for k in scenario if str(exc).startswith(k) or repr(k) in str(exc)), None)
+            if firmware is None or not scenario or key is None:
+                raise       # not about the bench command (a bad --firmware image, say)
             msg = (f"the bench sends the board profile's {table} command ({', '.join(scenario)}) to the "
                    f"firmware: {exc}")
-            key = next((k for k in scenario if str(exc).startswith(k) or repr(k) in str(exc)), None)
-            if key is not None and hasattr(profile, "err"):      # the mistake is in the file: its line
+            if hasattr(profile, "err"):      # the mistake is in the file: its line
                 raise profile.err(msg, table.strip("[]").split(".")[0], None, "set", key) from None
             raise ConfigError(msg) from None
         try:

@@ -37,6 +37,7 @@ class Simulation:
         self.wall_s = 0.0
         self._traces = []
         self._closers = []
+        self._over = None       # why the simulation cannot run on (close, discard), or None
         if strict:      # specification limits become errors (the LPC4337 ADC's 4.5 MHz clock, ...)
             for p in self.peripherals():
                 if hasattr(p, "strict"):
@@ -77,8 +78,12 @@ class Simulation:
     def run(self, *, cycles: int | None = None, seconds=None, until=None, until_tick: int | None = None,
             stop=None) -> Simulation:
         """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), to absolute ``until`` seconds
-        or to base tick ``until_tick``. ``stop()``, if given, is checked after every event; the run
+        or to base tick ``until_tick``. ``seconds`` is rounded to the nearest base tick at each call,
+        so steps that are not whole ticks add up their roundings; ``until`` is an absolute end. ``stop()``, if given, is checked after every event; the run
         ends at the event that makes it true (``mcusim.testing.wait_until`` is built on it)."""
+        if self._over is not None:
+            raise McusimError(f"run(): this simulation was {self._over}: its firmware's tasks are ended, "
+                              "so it cannot run on (load the board again)")
         given = [x is not None for x in (cycles, seconds, until, until_tick)]
         if sum(given) != 1:
             raise McusimError("run() takes exactly one of cycles=, seconds=, until=, until_tick=")
@@ -185,9 +190,13 @@ class Simulation:
 
     def discard(self) -> None:
         """Drop the firmware's task coroutines (a simulation that will not run on)."""
+        self._over = self._over or "discarded"
         close_firmware_tasks(self.members)
 
     def close(self) -> None:
+        """End the run: traces flushed and closed, links closed, the firmware's tasks ended. The
+        state stays readable; ``run()`` refuses to go on."""
+        self._over = "closed"
         for tr in self._traces:
             tr.close(self.kernel.now)
         self._traces.clear()

@@ -87,6 +87,38 @@ def test_wrong_machine_is_one_clear_error(tmp_path):
         mcusim.load("nucleo-f746", firmware=str(bad))
 
 
+@pytest.mark.parametrize("size,message", [
+    (20, r"a truncated ELF file \(20 bytes; its header alone is 52\)"),
+    (1000, r"not a valid ELF file, truncated or corrupt \(1000 bytes; the ELF reader says: .*past EOF"),
+])
+def test_a_truncated_elf_says_so(tmp_path, size, message):
+    """Was "not a valid ELF file: expected 4, found 0" (the ELF reader's words) for 20 bytes."""
+    bad = tmp_path / "cut.elf"
+    bad.write_bytes((BIN / "ticks.elf").read_bytes()[:size])
+    with pytest.raises(ConfigError, match=message):
+        mcusim.load("nucleo-f746", firmware=str(bad))
+
+
+def test_a_big_endian_elf_names_its_machine_read_in_its_own_byte_order(tmp_path):
+    """The machine of a big-endian image was read little-endian (machine 10240 for EM_ARM)."""
+    data = bytearray((BIN / "ticks.elf").read_bytes())
+    data[5] = 2                                     # EI_DATA = ELFDATA2MSB
+    struct.pack_into(">H", data, 18, 40)            # e_machine = EM_ARM, big-endian
+    bad = tmp_path / "be.elf"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match=r"an ELF for EM_ARM \(32-bit, big-endian\).*32-bit little-endian ARM"):
+        mcusim.load("nucleo-f746", firmware=str(bad))
+
+
+def test_a_bad_image_given_to_bench_is_not_blamed_on_the_bench_command(tmp_path, capsys):
+    from mcusim.cli import main
+    bad = tmp_path / "cut.elf"
+    bad.write_bytes((BIN / "ticks.elf").read_bytes()[:20])
+    assert main(["bench", "nucleo-f746", "--firmware", str(bad), "--repeat", "1", "--duration", "1ms"]) == 2
+    err = capsys.readouterr().err
+    assert "a truncated ELF file" in err and "[bench.set]" not in err, err
+
+
 def test_no_loadable_segment_is_one_clear_error(tmp_path):
     data = bytearray((BIN / "ticks.elf").read_bytes())
     phoff, phentsize, phnum = struct.unpack_from("<I", data, 28)[0], *struct.unpack_from("<HH", data, 42)

@@ -89,3 +89,16 @@ def test_a_set_word_that_reads_as_false_is_the_one_choice_spelled_so(word):
 def test_a_quoted_set_value_is_the_text_inside_the_quotes(text, quote):
     from mcusim.board import parse_value
     assert parse_value(f"{quote}{text}{quote}") == text
+
+
+def test_a_closed_or_discarded_simulation_refuses_to_run_on():
+    """Ran on silently after close(), with its firmware's tasks already ended."""
+    import mcusim
+    from mcusim.errors import McusimError
+    for end in ("close", "discard"):
+        sim = mcusim.load("pro-mini")
+        sim.run(seconds="1ms")
+        getattr(sim, end)()
+        with pytest.raises(McusimError, match="cannot run on"):
+            sim.run(seconds="1ms")
+        assert sim.summary()["simulated_s"] == pytest.approx(1e-3)     # the state stays readable

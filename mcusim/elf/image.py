@@ -93,6 +93,17 @@ def read_elf(path) -> ElfImage:
     if raw[:4] != b"\x7fELF":
         raise ConfigError(f"{where}: not an ELF file (it starts with {raw[:4]!r}); --firmware takes an ELF "
                           "image built for the board's Cortex-M core")
+    ident_class, ident_data = (raw[4], raw[5]) if len(raw) >= 6 else (0, 0)
+    if ident_class in (1, 2) and ident_data in (1, 2) and (ident_class, ident_data) != (1, 1):
+        # another class or byte order: say which machine it is for, read in its own byte order
+        from elftools.elf.enums import ENUM_E_MACHINE
+        num = int.from_bytes(raw[18:20], "little" if ident_data == 1 else "big") if len(raw) >= 20 else None
+        machine = next((k for k, v in ENUM_E_MACHINE.items() if v == num), f"machine {num}")
+        raise ConfigError(f"{where}: an ELF for {machine} ({32 * ident_class}-bit, "
+                          f"{'little' if ident_data == 1 else 'big'}-endian); the board's core needs a "
+                          "32-bit little-endian ARM (EM_ARM) image")
+    if len(raw) < 52:
+        raise ConfigError(f"{where}: a truncated ELF file ({len(raw)} bytes; its header alone is 52)")
     import io
     try:
         elf = ELFFile(io.BytesIO(raw))
@@ -127,12 +138,11 @@ def read_elf(path) -> ElfImage:
                     image.sizes[sym.name] = sym["st_size"]
                 if kind == "STT_FUNC":
                     funcs.append((addr, addr + sym["st_size"], sym.name))
-    except ELFError as exc:
-        raise ConfigError(f"{where}: not a valid ELF file: {exc}") from None
     except ConfigError:
         raise
-    except (ValueError, KeyError, IndexError, AssertionError) as exc:   # a truncated or corrupt file
-        raise ConfigError(f"{where}: not a valid ELF file: {type(exc).__name__}: {exc}") from None
+    except (ELFError, ValueError, KeyError, IndexError, AssertionError) as exc:   # truncated or corrupt
+        raise ConfigError(f"{where}: not a valid ELF file, truncated or corrupt ({len(raw)} bytes; the "
+                          f"ELF reader says: {exc})") from None
     funcs.sort()
     image._funcs = funcs
     image._starts = [f[0] for f in funcs]
