@@ -292,6 +292,12 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
             args[term.lower()] = net
         try:
             parts[name] = cls(kernel, name=name, **args, **params)
+        except _PartError:
+            raise
+        except ConfigError as exc:      # about this part's declaration, unless --set changed it
+            if part_overrides.get(name) or str(exc).startswith(where):
+                raise
+            raise _PartError(f"part {name} ({kind.name}): {exc}", name, None, None, where) from None
         except McusimError:
             raise
         except BUILD_ERRORS as exc:
@@ -358,7 +364,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             bus.attach(0xE000ED00, Scb(irq))
     mcu.nvic = mcu.irq = irq
     limit, what = (core.get("vectors", 26), "vectors") if avr else (core.get("nvic_irqs", 98), "NVIC lines")
-    for spec in profile.get("peripheral", []):
+    for index, spec in enumerate(profile.get("peripheral", [])):
         pwhere = f"{where}: peripheral {spec.get('name')}"
         kind = kinds.lookup("peripheral", spec.get("kind"), pwhere)
         cls = kind.load()
@@ -370,8 +376,8 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             kwargs["sysclk_hz"] = sysclk
         if "clock" in spec:
             if spec["clock"] not in mcu.clocks:
-                raise ConfigError(f"{where}: peripheral {spec['name']}: no clock {spec['clock']!r} "
-                                  f"(clocks: {', '.join(mcu.clocks)})")
+                raise _located(profile, where, f"peripheral {spec['name']}: no clock {spec['clock']!r} "
+                               f"(clocks: {', '.join(mcu.clocks)})", "peripheral", index, "clock")
             kwargs["clock"] = mcu.clocks[spec["clock"]]
         try:
             p = cls(spec["name"], mcu, **kwargs)
@@ -380,21 +386,35 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                 bus.attach_registers(spec.get("base", 0), p)  # AVR: registers scattered in data space
             else:
                 bus.attach(spec["base"], p)
+        except ConfigError as exc:      # about this peripheral's declaration: at its table
+            if str(exc).startswith(where):
+                raise
+            raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): {exc}", "peripheral",
+                           index) from None
         except McusimError:
             raise
         except BUILD_ERRORS as exc:
-            raise ConfigError(f"{pwhere} ({kind.name}): {exc}") from None
+            raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): {exc}", "peripheral",
+                           index) from None
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
     for pin_name, level in profile.get("pull", {}).items():
         if level not in (0, 1):
             raise ConfigError(f"{where}: [pull] {pin_name} = {level!r}: expected 0 or 1")
-        mcu.pin(pin_name).set_pull(level)
-    # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1)
-    for spec in profile.get("peripheral", []):
-        for out, pin_name in spec.get("outputs", {}).items():
+        try:
             net = mcu.pin(pin_name)
+        except ConfigError as exc:
+            raise _located(profile, where, f"[pull] {exc}", "pull", None, pin_name) from None
+        net.set_pull(level)
+    # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1)
+    for index, spec in enumerate(profile.get("peripheral", [])):
+        for out, pin_name in spec.get("outputs", {}).items():
+            try:
+                net = mcu.pin(pin_name)
+            except ConfigError as exc:
+                raise _located(profile, where, f"peripheral {spec['name']}: outputs.{out}: {exc}", "peripheral",
+                               index, "outputs", out) from None
             owner = next((q for q in mcu.periph.values() if net in getattr(q, "pins", ())
                           and hasattr(q, "connect_override")), None)
             if owner is None:

@@ -156,7 +156,11 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
         if member not in members:
             raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
         part, _, term = target.partition(".")
-        wiring.setdefault(part, {})[term.upper()] = members[member]["mcu"].pin(pin_name)
+        try:
+            net = members[member]["mcu"].pin(pin_name)
+        except ConfigError as exc:
+            raise _located(profile, where, f"[pins] {pin!r}: {exc}", "pins", None, pin) from None
+        wiring.setdefault(part, {})[term.upper()] = net
     for source, net in link_nets.items():
         part, _, term = source.partition(".")
         wiring.setdefault(part, {})[term.upper()] = net
@@ -273,14 +277,23 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
     buses: dict = {}
     members: dict = {}
     try:
-        for m in specs:
+        for index, m in enumerate(specs):
             name = m["name"]
             try:
                 members[name] = _build_member(
                     m, *member_profiles[name], member_sets[name], present[name],
                     main_fw if name == main else {}, with_firmware, kernel, buses, external[name])
             except ConfigError as exc:
-                raise _with_member_hint(exc, main, main_fw if name == main else {}, member_profiles) from None
+                exc = _with_member_hint(exc, main, main_fw if name == main else {}, member_profiles)
+                msg = str(exc)
+                # a value of the member's own ``set`` in this file (not a --set of the user's): its line
+                key = next((k for k in sorted(m.get("set", {}), key=len, reverse=True)
+                            if k not in member_sets[name] and msg.startswith(k)
+                            and msg[len(k):len(k) + 1] in (" ", ":", "=", "[")), None)
+                if key is not None:
+                    raise _located(profile, where, f"member {name}: set: {msg}", "member", index, "set",
+                                   key) from None
+                raise exc from None
         _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     except Exception:

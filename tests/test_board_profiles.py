@@ -366,3 +366,34 @@ def test_a_number_written_as_text_in_a_profile_is_refused(tmp_path, capsys, old,
     err = _err(capsys, ["run", str(p), "--duration", "1ms"])
     line = text[:text.index(old)].count("\n") + 1
     assert f"b.toml:{line}:" in err and message in err, err
+
+
+def _table_line(text: str, marker: str) -> int:
+    """The line of the [[...]] header of the table holding ``marker``."""
+    at = text.index(marker)
+    return text[:text.rindex("[[", 0, at)].count("\n") + 1
+
+
+@pytest.mark.parametrize("board,old,new,located", [
+    # a second peripheral taking port A, at its table
+    ("nucleo-f746", 'port = "B"', 'port = "A"', ("table", 'port = "A"\n[[peripheral]]\nname = "GPIOC"',
+                                                  "peripheral GPIOB (stm32-gpio): GPIOB: port A is declared twice")),
+    # a clock the MCU does not have, at its key
+    ("nucleo-f746", 'clock = "APB2_TIM"', 'clock = "APB9_TIM"', ("key", 'clock = "APB9_TIM"',
+                                                                  "peripheral TIM1: no clock 'APB9_TIM'")),
+    # a member's own set value out of range, at its key in the system file
+    ("rover-diff", '"firmware.i2c_address" = 0x08', '"firmware.i2c_address" = 0x200',
+     ("key", '"firmware.i2c_address" = 0x200', "member left: set: firmware.i2c_address = 512: must be from 8 to 119")),
+    # a pin a member's MCU does not have, in the system's [pins]
+    ("rover-diff", '"rcm.GPIO3_0" =', '"rcm.GPIO9_99" =',
+     ("key", '"rcm.GPIO9_99" =', "[pins] 'rcm.GPIO9_99': LPC4337 has no pin 'GPIO9_99'")),
+])
+def test_mistakes_found_while_building_name_the_profiles_line(tmp_path, capsys, board, old, new, located):
+    """These said what was wrong but not where (no file, or no line, or no member)."""
+    text = shipped_text(board).replace(old, new, 1)
+    p = tmp_path / "b.toml"
+    p.write_text(text)
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    how, marker, message = located
+    line = _table_line(text, marker) if how == "table" else text[:text.index(marker)].count("\n") + 1
+    assert f"b.toml:{line}: {message}" in err, err
