@@ -317,7 +317,7 @@ def test_rover_register_log_csv_plot_and_gtkw(tmp_path):
     for member in ("rcm", "mcm1", "mcm2", "mcm3", "mcm4"):
         assert f"-elementall.{member}\n" in text
     assert "elementall.mcm3.PB1\n" in text and "elementall.rcm.GPIO3_3\n" in text
-    assert "elementall.plant.estop.enable_out\n" in text
+    assert "elementall.plant.\\estop.enable_out\n" in text      # escaped as GTKWave names it
 
 
 # --- plot -----------------------------------------------------------------------------------------------
@@ -373,7 +373,7 @@ def test_gtkw_groups_pins_interrupts_and_plant_with_full_names(tmp_path):
     for pin in ("PE9", "PB4", "PD13"):
         assert group_of(f"nucleo-f746.{pin}") == "nucleo-f746"
     assert group_of("nucleo-f746.irq.TIM1_UP") == "interrupts"
-    assert group_of("nucleo-f746.plant.motor1.angle_rad") == "plant"
+    assert group_of("nucleo-f746.plant.\\motor1.angle_rad") == "plant"
     flag = {}
     current = None
     for x in lines:
@@ -382,8 +382,8 @@ def test_gtkw_groups_pins_interrupts_and_plant_with_full_names(tmp_path):
         elif x.startswith("nucleo-f746"):
             flag[x] = current
     assert flag["nucleo-f746.PE9"] == "@28" and flag["nucleo-f746.irq.TIM3"] == "@28"
-    assert flag["nucleo-f746.plant.motor2.current_a"] == "@8420"      # analog step
-    assert flag["nucleo-f746.plant.bridgeA.ocd"] == "@28"
+    assert flag["nucleo-f746.plant.\\motor2.current_a"] == "@8420"      # analog step
+    assert flag["nucleo-f746.plant.\\bridgeA.ocd"] == "@28"
     # the VCD declares the same names
     from vcd.reader import TokenKind, tokenize
     declared, scope = set(), []
@@ -393,8 +393,9 @@ def test_gtkw_groups_pins_interrupts_and_plant_with_full_names(tmp_path):
                 scope.append(tok.scope.ident)
             elif tok.kind is TokenKind.UPSCOPE:
                 scope.pop()
-            elif tok.kind is TokenKind.VAR:
-                declared.add(".".join(scope + [tok.var.reference]))
+            elif tok.kind is TokenKind.VAR:   # as GTKWave names it: a name holding a dot escaped
+                ref = tok.var.reference
+                declared.add(".".join(scope) + "." + ("\\" + ref if "." in ref else ref))
     assert declared == {name for _, name, _ in tr.signals}
 
 
