@@ -111,6 +111,9 @@ def parse_link(spec: str, what: str = "--mavlink"):
     lowest = 0 if mode == "udpin" else 1          # udpin:HOST:0 listens on a free port (printed)
     if mode in ("udpout", "udpin") and host and port.isdigit() and lowest <= int(port) < 65536:
         return (mode, host, int(port))
+    if mode in ("udpout", "udpin") and host and port.isdigit():
+        raise ConfigError(f"{what} {spec!r}: port {int(port)} is out of range ({lowest} to 65535"
+                          + (", 0 for udpin only: a free port" if mode == "udpout" else ": 0 takes a free port") + ")")
     raise ConfigError(f"{what} {spec!r}: expected pty, udpout:HOST:PORT or udpin:HOST:PORT "
                       "(udpout:127.0.0.1:14550 reaches QGroundControl)")
 

@@ -69,10 +69,17 @@ def test_udpin_answers_the_peer_that_spoke_first_and_drops_output_until_then():
         sim.close()
 
 
-@pytest.mark.parametrize("spec", ["udp:127.0.0.1:14550", "udpout:127.0.0.1", "udpout:127.0.0.1:0",
-                                  "udpout:127.0.0.1:70000", "serial", "tcp:127.0.0.1:5760", ""])
+@pytest.mark.parametrize("spec", ["udp:127.0.0.1:14550", "udpout:127.0.0.1", "serial", "tcp:127.0.0.1:5760", ""])
 def test_a_link_that_is_not_pty_udpout_or_udpin_is_refused_naming_the_forms(spec):
     with pytest.raises(ConfigError, match="expected pty, udpout:HOST:PORT or udpin:HOST:PORT"):
+        parse_link(spec)
+
+
+@pytest.mark.parametrize("spec,bound", [("udpout:127.0.0.1:0", "1 to 65535"), ("udpout:127.0.0.1:70000", "1 to 65535"),
+                                        ("udpin:0.0.0.0:65536", "0 to 65535")])
+def test_a_port_out_of_range_is_named_as_such(spec, bound):
+    """Was the generic 'expected pty, udpout:HOST:PORT ...' for a well-formed link."""
+    with pytest.raises(ConfigError, match=f"port {spec.rsplit(':', 1)[1]} is out of range \\({bound}"):
         parse_link(spec)
 
 

@@ -283,3 +283,12 @@ def test_a_part_that_declares_a_method_as_a_value_is_read_through_it(tmp_path):
               '[[expect]]\ntime = "2ms"\npart = "battery"\nattr = "voltage"\nmin = 11.0\nmax = 14.0\n', "v.toml")
     _, sc = run_scenario(p)
     assert not sc.failed and 11.0 < sc.results[0].got < 14.0, sc.format_results()
+
+
+def test_a_scenario_for_a_board_that_does_not_exist_says_so(tmp_path):
+    """Said only that the scenario was meant for 'nucleo-f999', not for the board given."""
+    p = write(tmp_path, HEAD.replace('"nucleo-f746"', '"nucleo-f999"'))
+    msg = error_of(load_scenario(p).check_board, "nucleo-f746")
+    assert "s.toml:2: the scenario is meant for board 'nucleo-f999', not 'nucleo-f746'" in msg
+    assert "no shipped board is called 'nucleo-f999'" in msg and "nucleo-f746" in msg
+    assert "no shipped board" not in error_of(load_scenario(write(tmp_path, HEAD, "t.toml")).check_board, "pro-mini")

@@ -168,6 +168,13 @@ class Scenario(Checker):
         return self._line("scenario", None, "duration")
 
     # --- building and applying ------------------------------------------------------------------------
+    def _no_such_board(self) -> str:
+        """A hint where the scenario's board is no shipped board (a typo, or a board of the user's)."""
+        from ..board import board_names
+        names = board_names()
+        return "" if self.board in names else (f" (no shipped board is called {self.board!r}: "
+                                               f"{', '.join(names)}; or run it with that board's file)")
+
     def check_board(self, board: str) -> None:
         """ConfigError if the scenario names a board and ``board`` (a name or a profile path) is
         another one."""
@@ -178,7 +185,7 @@ class Scenario(Checker):
         name = (profile.get("board") or profile.get("system") or {}).get("name")
         if name != self.board:
             raise self._err(self._line("scenario", None, "board"),
-                            f"the scenario is meant for board {self.board!r}, not {board!r}")
+                            f"the scenario is meant for board {self.board!r}, not {board!r}{self._no_such_board()}")
 
     def build(self, board: str | None = None, overrides: dict | None = None, firmware: bool = True,
               engine: str = "fast"):
@@ -214,7 +221,8 @@ class Scenario(Checker):
             raise ConfigError(f"{self.path}: this scenario is already applied to a simulation")
         if self.board is not None and sim.board_name != self.board:
             raise self._err(self._line("scenario", None, "board"),
-                            f"the scenario is meant for board {self.board!r}, not {sim.board_name!r}")
+                            f"the scenario is meant for board {self.board!r}, not {sim.board_name!r}"
+                            f"{self._no_such_board()}")
         tb, kernel = sim.timebase, sim.kernel
         end = tb.ticks(self._duration, rounding=True)
         plan = []                                    # (tick, prio, fn): scheduled once all is checked
