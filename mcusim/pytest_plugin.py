@@ -5,8 +5,8 @@ Active once mcusim is installed (entry point ``pytest11: mcusim``). It provides
 * the fixture ``mcusim_sim``: a factory, ``sim = mcusim_sim("pro-mini", firmware=True,
   overrides={...})``, returning a fresh :class:`mcusim.Simulation`; at teardown every simulation
   it made is closed, and one that never ran is discarded (its firmware tasks dropped);
-* the option ``--mcusim-vcd DIR``: each simulation made by the fixture writes a VCD into DIR,
-  named after the test's node id;
+* the option ``--mcusim-vcd DIR``: each simulation made by the fixture that ran writes a VCD
+  into DIR, named after the test's node id;
 * the fixture ``mcusim_mavlink``: ``gcs = mcusim_mavlink(sim)`` gives a test a pymavlink ground
   station on the firmware's MAVLink UART, in simulated time (:class:`mcusim.mavlink.MavlinkClient`);
 * the helpers of :mod:`mcusim.testing`, re-exported: ``wait_until``, ``wait_for_pin``,
@@ -74,10 +74,12 @@ def _vcd_dir(config, value) -> Path:
 def mcusim_sim(request):
     """A factory of simulations: ``mcusim_sim(board, firmware=True, overrides=None, **kw)`` is
     ``mcusim.load(...)``; every simulation it made is closed at teardown (and discarded if it
-    never ran). With ``--mcusim-vcd DIR`` each one also writes ``DIR/<node id>.vcd``."""
+    never ran). With ``--mcusim-vcd DIR`` each one that ran also writes ``DIR/<node id>.vcd``
+    (one that never ran leaves none: it would hold the header alone)."""
     vcd_option = request.config.getoption("mcusim_vcd", None)
     vcd_dir = _vcd_dir(request.config, vcd_option) if vcd_option else None
     made = []
+    vcd_paths = {}              # id(sim) -> the VCD it writes
 
     def factory(board: str, firmware: bool = True, overrides: dict | None = None, **kw):
         # imported here, not at the top: keeps pytest start free of the models
@@ -90,7 +92,9 @@ def mcusim_sim(request):
         made.append(sim)
         if vcd_dir is not None:
             vcd_dir.mkdir(parents=True, exist_ok=True)
-            sim.trace_vcd(vcd_dir / vcd_filename(request.node.nodeid, len(made)))
+            path = vcd_dir / vcd_filename(request.node.nodeid, len(made))
+            sim.trace_vcd(path)
+            vcd_paths[id(sim)] = path
         return sim
 
     factory.simulations = made
@@ -98,7 +102,7 @@ def mcusim_sim(request):
 
     with contextlib.ExitStack() as stack:   # every simulation is finished even if one fails
         for sim in made:
-            stack.callback(_finish, sim)
+            stack.callback(_finish, sim, vcd_paths.get(id(sim)))
 
 
 @pytest.fixture
@@ -118,10 +122,12 @@ def mcusim_mavlink():
     return factory
 
 
-def _finish(sim) -> None:
+def _finish(sim, vcd_path=None) -> None:
     never_ran = sim.kernel.now == 0 and sim.kernel.events == 0   # its tasks never started
     try:
         sim.close()
     finally:
         if never_ran:
             sim.discard()
+            if vcd_path is not None and vcd_path.exists():
+                vcd_path.unlink()
