@@ -230,6 +230,12 @@ def cmd_run(args) -> int:
                 nearest = Fraction(round(Fraction(value) * hz), hz)
                 if nearest > 0 and 10**12 % nearest.denominator == 0:   # a short decimal: offer it
                     hint = f"the nearest is {fmt_duration(nearest)}"
+                else:           # else the nearest whole microsecond or nanosecond that is whole ticks
+                    for unit, name in ((Fraction(1, 10**6), "microsecond"), (Fraction(1, 10**9), "nanosecond")):
+                        near = round(Fraction(value) / unit) * unit
+                        if near > 0 and (near * hz).denominator == 1:
+                            hint = f"the nearest whole {name} is {fmt_duration(near)}"
+                            break
                 raise ConfigError(f"{opt} {fmt_duration(value)}: not a whole number of base ticks "
                                   f"(1/{hz} s); {hint}") from None
         gdb = None

@@ -274,6 +274,10 @@ def test_a_time_off_the_base_tick_offers_the_nearest_that_is_on_it(capsys):
     """Was "try 10ms or 2s": 1.0000001 ms at 216 MHz is 216000.0216 ticks, the nearest 1 ms."""
     _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1.0000001ms"],
                  "--duration 1.0000001ms: not a whole number of base ticks", "the nearest is 1ms")
+    # 1.00001 ms is 216002.16 ticks: the nearest tick is no short decimal, a whole microsecond is
+    # (was "try 10ms or 2s" here, where the 16 MHz pro-mini offered "the nearest is 1ms")
+    _usage_error(capsys, ["run", "nucleo-f746", "--duration", "1.00001ms"],
+                 "--duration 1.00001ms: not a whole number of base ticks", "the nearest whole microsecond is 1ms")
 
 
 def test_after_run_files_already_written_stay_when_a_later_one_fails(tmp_path, capsys):
