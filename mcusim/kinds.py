@@ -425,5 +425,11 @@ def reference(group: str) -> str:
                 out.append(f"| `{name}` | {p.describe().replace('|', '/')} |")
         elif kind.open_params:
             out += ["", "Its parameters are not declared (no `PARAMS`): they are passed unchecked."]
+        inputs = getattr(kind.load(), "INPUTS", None) if group == "firmware" else None
+        if inputs:      # what a host gives the firmware (--set NAME=VALUE), with the checked ranges
+            out += ["", "Inputs a host gives it (`--set NAME=VALUE`):", "",
+                    "| input | type, default, range: meaning |", "|---|---|"]
+            for name, p in inputs.items():
+                out.append(f"| `{name}` | {p.describe().replace('|', '/')} |")
         out.append("")
     return "\n".join(out)

@@ -62,6 +62,8 @@ DEFAULTS = {
 # turns, about half a minute at full speed) keeps a typo from becoming a run that never settles
 SET_POS = Param(0.0, min=-1000.0, max=1000.0, unit="rad", doc="output-shaft angle set point")
 ENABLE = Param(True, doc="bridge enable")
+# the topics a host publishes to (``--set /motor1/set_pos=1.57``), n = 1, 2 (mcusim boards --kinds)
+INPUTS = {"/motor<n>/set_pos": SET_POS, "/motor<n>/enable": ENABLE}
 
 
 @dataclass
@@ -75,6 +77,7 @@ class Topic:
 
 class ControlMotorFirmware:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    INPUTS = INPUTS              # the topics a host publishes to, checked (mcusim boards --kinds)
 
     def __init__(self, mcu, **params):
         self.p = firmware_params(DEFAULTS, params)

@@ -89,6 +89,7 @@ def counts_to_rpm(counts_s: float) -> float:
 class OpenRoverMcm:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
+    INPUTS = INPUTS              # and their checked values (mcusim boards --kinds)
 
     def __init__(self, mcu, adc=None, **params):
         self.p = firmware_params(DEFAULTS, params)

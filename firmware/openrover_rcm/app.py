@@ -151,6 +151,7 @@ class RoverControl:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
     MAVLINK_UART = "USART3"      # the UART of the MAVLink task (mcusim run --mavlink connects it)
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
+    INPUTS = INPUTS              # and their checked values (mcusim boards --kinds)
     SUMMARY_TOP = ("odometry",)
 
     def __init__(self, mcu, **params):
