@@ -27,6 +27,16 @@ def _err(capsys, argv):
     return err
 
 
+def _edited_run_error(tmp_path, capsys, board, old, new, name):
+    """(error line, line number of ``old``) of a run of ``board``'s profile with ``old`` replaced
+    by ``new``, written as ``name``."""
+    text = shipped_text(board)
+    assert old in text
+    p = tmp_path / name
+    p.write_text(text.replace(old, new, 1))
+    return _err(capsys, ["run", str(p), "--duration", "1ms"]), text[:text.index(old)].count("\n") + 1
+
+
 def test_the_kind_tables_of_the_doc_are_the_registry():
     text = DOC.read_text()
     body = text.split("<!-- kinds:begin -->\n", 1)[1].split("<!-- kinds:end -->", 1)[0]
@@ -233,12 +243,7 @@ def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp
 def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
     """Were "load 'motor' is not a bridge", "'ibt2' is not a wheel motor" and "unknown board" without
     file:line."""
-    text = shipped_text("elementall")
-    assert old in text
-    p = tmp_path / "s.toml"
-    p.write_text(text.replace(old, new, 1))
-    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
-    line = text[:text.index(old)].count("\n") + 1
+    err, line = _edited_run_error(tmp_path, capsys, "elementall", old, new, "s.toml")
     assert f"s.toml:{line}: {needle}" in err, err
 
 
@@ -359,12 +364,7 @@ def test_a_part_listed_twice_in_a_list_of_parts_is_refused(tmp_path, capsys):
 def test_a_number_written_as_text_in_a_profile_is_refused(tmp_path, capsys, old, new, message):
     """A TOML string where a number belongs ran as the number: boards.md says every value has
     its type (a --set value is text and is read as one)."""
-    text = shipped_text("nucleo-f746")
-    assert old in text
-    p = tmp_path / "b.toml"
-    p.write_text(text.replace(old, new, 1))
-    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
-    line = text[:text.index(old)].count("\n") + 1
+    err, line = _edited_run_error(tmp_path, capsys, "nucleo-f746", old, new, "b.toml")
     assert f"b.toml:{line}:" in err and message in err, err
 
 
