@@ -235,7 +235,10 @@ class PeriodicDrive:
         return (self._t0 + tr.periods * tr.plan.P,) + tr.wspan
 
     def _state_ahead(self, tick: int):
-        """(i, ω, θ) at ``tick`` ≥ now on the current trajectory, as the observers read it there."""
+        """(i, ω, θ) at ``tick`` ≥ now on the current trajectory, as the observers read it there
+        (now: the observers' memo, which the encoder's own read at its crossing has filled)."""
+        if tick == self.kernel.now:
+            return self._now_state()
         n = tick - self._t0
         return self._x0 if (n == 0 or self._traj is None) else self._at(self._traj, n)
 
