@@ -661,7 +661,10 @@ class DcMotor(PeriodicDrive):
                 self._ev = self.kernel.at(self._t0 + H, self._on_event, prio=PRIO_PLANT)
         else:
             self._pending, self._pending_time = firing, self._t0 + best
-            self._ev = self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_HW if at_end else PRIO_PLANT)
+            # a guard firing on the piece's last tick: that event is the drive's edge too (a bridge
+            # checks the switches turning on there, as after a piece end without a guard)
+            self._ev = (self.kernel.at(self._t0 + best, self._on_piece_end, prio=PRIO_HW) if at_end else
+                        self.kernel.at(self._t0 + best, self._on_event, prio=PRIO_PLANT))
         if passive:
             self._seg_end = H if best is None else best
             self._find_passive()
