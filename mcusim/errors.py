@@ -5,15 +5,22 @@ class McusimError(Exception):
     """Bad user input or an impossible request; the CLI prints it as one line and exits non-zero."""
 
 
+def key_of_message(msg: str, keys, set_too: bool = True):
+    """The longest of ``keys`` that ``msg`` is about: the message starts with it (or with
+    ``--set`` and it, if ``set_too``), followed by a space, ``:``, ``=`` or ``[``; else None."""
+    for key in sorted(keys, key=len, reverse=True):
+        for head in ((f"--set {key}", key) if set_too else (key,)):
+            if msg.startswith(head) and msg[len(head):len(head) + 1] in (" ", ":", "=", "["):
+                return key
+    return None
+
+
 def with_member(exc, member: str, keys) -> Exception:
     """``exc`` (a ConfigError about one of ``keys``, given for system member ``member``) with the key
     named as the user wrote it: ``mcm2.motor.R`` rather than ``motor.R``."""
     msg = str(exc)
-    for key in sorted(keys, key=len, reverse=True):
-        for head in (f"--set {key}", key):
-            if msg.startswith(head) and msg[len(head):len(head) + 1] in (" ", ":", "="):
-                return type(exc)(msg.replace(key, f"{member}.{key}", 1))
-    return exc
+    key = key_of_message(msg, keys)
+    return exc if key is None else type(exc)(msg.replace(key, f"{member}.{key}", 1))
 
 
 class ConfigError(McusimError):

@@ -79,8 +79,9 @@ class Simulation:
             stop=None) -> Simulation:
         """Advance by core ``cycles``, by ``seconds`` (number or "2ms"), to absolute ``until`` seconds
         or to base tick ``until_tick``. ``seconds`` is rounded to the nearest base tick at each call,
-        so steps that are not whole ticks add up their roundings; ``until`` is an absolute end. ``stop()``, if given, is checked after every event; the run
-        ends at the event that makes it true (``mcusim.testing.wait_until`` is built on it)."""
+        so steps that are not whole ticks add up their roundings; ``until`` is an absolute end.
+        ``stop()``, if given, is checked after every event; the run ends at the event that makes it
+        true (``mcusim.testing.wait_until`` is built on it)."""
         if self._over is not None:
             raise McusimError(f"run(): this simulation was {self._over}: its firmware's tasks are ended, "
                               "so it cannot run on (load the board again)")

@@ -51,7 +51,7 @@ from .board import (
     read_profile,
     split_overrides,
 )
-from .errors import ConfigError, with_member
+from .errors import ConfigError, key_of_message, with_member
 from .kernel import Kernel
 from .signals import Net
 from .time import TimeBase
@@ -287,9 +287,8 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                 exc = _with_member_hint(exc, main, main_fw if name == main else {}, member_profiles)
                 msg = str(exc)
                 # a value of the member's own ``set`` in this file (not a --set of the user's): its line
-                key = next((k for k in sorted(m.get("set", {}), key=len, reverse=True)
-                            if k not in member_sets[name] and msg.startswith(k)
-                            and msg[len(k):len(k) + 1] in (" ", ":", "=", "[")), None)
+                key = key_of_message(msg, [k for k in m.get("set", {}) if k not in member_sets[name]],
+                                     set_too=False)
                 if key is not None:
                     raise _located(profile, where, f"member {name}: set: {msg}", "member", index, "set",
                                    key) from None

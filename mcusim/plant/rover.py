@@ -140,12 +140,10 @@ class RoverBody:
             if not all(hasattr(mot, a) for a in ("output_angle", "output_speed", "set_params",
                                                   "apply_load_torque")):
                 raise ConfigError(f"{who}: {getattr(mot, 'name', mot)!r} is not a wheel motor")
-        seen = set()
-        for mot in motors:
-            if id(mot) in seen:
-                raise ConfigError(f"{who}: motor {getattr(mot, 'name', mot)!r} is listed twice (each wheel "
-                                  f"has its own motor: the body sets each one's load)")
-            seen.add(id(mot))
+        twice = next((m for i, m in enumerate(motors) if any(m is n for n in motors[:i])), None)
+        if twice is not None:
+            raise ConfigError(f"{who}: motor {getattr(twice, 'name', twice)!r} is listed twice (each wheel "
+                              f"has its own motor: the body sets each one's load)")
         if any(s not in ("L", "R") for s in sides) or "L" not in sides or "R" not in sides:
             raise ConfigError(f"{who}: sides = {sides!r}: each must be 'L' or 'R', with both sides present")
         if directions is None:
