@@ -61,6 +61,30 @@ def read_profile(board: str) -> tuple[dict, str]:
     return profile, where
 
 
+def profile_file(board: str) -> Path | None:
+    """The file a board name or path reads (a shipped profile's too, where it is a file), or None."""
+    path = Path(board)
+    if path.suffix == ".toml" or path.exists() or "/" in str(board):
+        return path
+    res = importlib.resources.files("mcusim.boards") / f"{board}.toml"
+    return Path(str(res)) if res.is_file() and Path(str(res)).is_file() else None
+
+
+def profile_files(board: str) -> list:
+    """The files reading the profile ``board`` involves: its own and, for a system, its members'
+    (what no output of a run may overwrite)."""
+    own = profile_file(board)
+    if own is None:
+        return []
+    files = [own]
+    profile, _ = read_profile(board)
+    if "system" in profile:
+        for m in profile.get("member", []):
+            if isinstance(m, dict) and isinstance(m.get("board"), str):
+                files += [f for f in [profile_file(m["board"])] if f is not None]
+    return files
+
+
 def parse_value(text: str):
     """A ``--set`` value: true/false, an int (also 0x.., 0b..), a float, a list (``8,9`` or ``[8,9]``),
     else the string itself; in quotes (``"off"``, ``'12'``) always the string inside them."""

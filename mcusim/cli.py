@@ -16,6 +16,7 @@ import os
 import signal
 import sys
 from fractions import Fraction
+from pathlib import Path
 
 from .cli_args import _parser
 from .errors import ConfigError, McusimError, TimeError
@@ -155,13 +156,25 @@ def _check_run_args(args) -> None:
                           f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
 
 
+def _input_files(args, scenario=None) -> list:
+    """Every file the command reads, which no output may overwrite: the scenario, the board's
+    profile (a shipped one given by name too), a system's member profiles, the ``--firmware``
+    image and its topic map."""
+    from .board import profile_files
+    files = [scenario.path] if scenario is not None else []
+    files += profile_files(args.board)
+    elf = getattr(args, "firmware", None)
+    if elf:
+        from .elf.image import resolve_firmware
+        elf = resolve_firmware(elf)
+        files += [elf, Path(elf).with_suffix(".topics.toml")]
+    return files
+
+
 def _outputs(args, scenario):
     """The run's output files, checked (writable, distinct, not an input, what they need)."""
     from .outputs import Outputs, check_plot
-    inputs = [scenario.path] if scenario is not None else []
-    if args.board.endswith(".toml"):
-        inputs.append(args.board)
-    outs = Outputs(inputs)
+    outs = Outputs(_input_files(args, scenario))
     files = {}
     for opt, value in (("--vcd", args.vcd), ("--csv", args.csv), ("--plot", args.plot), ("--summary", args.summary)):
         if value == "-":
@@ -362,7 +375,10 @@ def cmd_bench(args) -> int:
                           f"{fmt_duration(args.max_duration)} (raise it with --max-duration)")
     if args.json == "":
         raise ConfigError("--json: an empty file name")
-    outs = Outputs([args.board] if args.board.endswith(".toml") else [])
+    if args.json == "-":
+        raise ConfigError("--json -: give a file name (the figures are printed on standard output "
+                          "as well)")
+    outs = Outputs(_input_files(args))
     out = outs.add("--json", args.json) if args.json else None
     outs.check()
     total = args.repeat * (2 if args.engine == "both" else 1)

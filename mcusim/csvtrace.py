@@ -37,11 +37,11 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from fractions import Fraction
 
 from .errors import ConfigError, TimeError
 from .kernel import PRIO_OBSERVE
+from .outputs import open_output
 
 RPM_PER_RAD_S = 60 / (2 * math.pi)
 
@@ -185,8 +185,7 @@ class CsvTrace:
             if hasattr(path, "write"):
                 self._file = path
             else:
-                self.path = os.fspath(path)
-                self._file = open(self.path, "w", newline="")  # noqa: SIM115 (closed by close())
+                self.path, self._file = open_output(path, "CSV", newline="")
                 self._own = True
             self._csv = csv.writer(self._file, lineterminator="\n")
             self._csv.writerow(self.columns)

@@ -26,6 +26,7 @@ blocks, and is dropped only when the host does not read, see ``PtyEndpoint.max_b
 from __future__ import annotations
 
 import errno
+import numbers
 import os
 import select
 
@@ -78,12 +79,25 @@ class BufferEndpoint:
 
     def feed(self, data) -> None:
         """Bytes from the host: they start arriving on the RX line now."""
-        self._need_usart().receive(bytes(data))
+        self._need_usart().receive(_as_bytes(data))
 
     def feed_at(self, tick: int, data) -> None:
         """Schedule ``feed(data)`` at base tick ``tick`` (e.g. to replay ``PtyEndpoint.injected``)."""
         usart = self._need_usart()
-        usart.kernel.at(tick, usart.receive, bytes(data), prio=PRIO_INPUT)
+        if isinstance(tick, bool) or not isinstance(tick, numbers.Integral) or tick < usart.kernel.now:
+            raise McusimError(f"feed_at({tick!r}): a base tick, an int not before now ({usart.kernel.now})")
+        usart.kernel.at(int(tick), usart.receive, _as_bytes(data), prio=PRIO_INPUT)
+
+
+def _as_bytes(data) -> bytes:
+    """Bytes given to ``feed``: bytes, bytearray, memoryview or a list of 0..255 (not an int, which
+    ``bytes()`` would take as a count of zero bytes, nor text, which has no one encoding)."""
+    if isinstance(data, (bytes, bytearray, memoryview)):
+        return bytes(data)
+    if isinstance(data, (list, tuple)) and all(isinstance(b, numbers.Integral) and not isinstance(b, bool)
+                                               and 0 <= b <= 255 for b in data):
+        return bytes(data)
+    raise McusimError(f"feed({data!r:.60}): give bytes (b\"...\"), a bytearray or a list of ints 0..255")
 
 
 class PolledEndpoint:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from .errors import ConfigError
+import numbers
+
+from .errors import ConfigError, McusimError
 from .signals import Net
 
 
@@ -29,10 +31,24 @@ class Mcu:
             self.pins[name] = Net(name)
         return self.pins[name]
 
-    # bus access as firmware (or a test) does it
-    def read8(self, a): return self.bus.read(a, 1)
-    def read16(self, a): return self.bus.read(a, 2)
-    def read32(self, a): return self.bus.read(a, 4)
-    def write8(self, a, v): self.bus.write(a, v, 1)
-    def write16(self, a, v): self.bus.write(a, v, 2)
-    def write32(self, a, v): self.bus.write(a, v, 4)
+    # bus access as firmware (or a test) does it; the arguments checked here (the ported firmware
+    # calls the bus itself, with its own ints)
+    def read8(self, a): return self.bus.read(_address(a), 1)
+    def read16(self, a): return self.bus.read(_address(a), 2)
+    def read32(self, a): return self.bus.read(_address(a), 4)
+    def write8(self, a, v): self.bus.write(_address(a), _value(v, 1), 1)
+    def write16(self, a, v): self.bus.write(_address(a), _value(v, 2), 2)
+    def write32(self, a, v): self.bus.write(_address(a), _value(v, 4), 4)
+
+
+def _address(a) -> int:
+    if isinstance(a, bool) or not isinstance(a, numbers.Integral) or a < 0:
+        raise McusimError(f"bus address {a!r:.40}: expected an int >= 0 (such as 0x40010034)")
+    return int(a)
+
+
+def _value(v, size: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 0 <= v < 1 << (8 * size):
+        raise McusimError(f"bus value {v!r:.40}: expected an int in 0 .. {(1 << (8 * size)) - 1:#x} "
+                          f"for a {8 * size}-bit write")
+    return int(v)

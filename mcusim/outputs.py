@@ -24,6 +24,23 @@ from .errors import ConfigError
 PLOT_FORMATS = (".png", ".pdf", ".svg", ".jpg", ".jpeg")
 
 
+def open_output(path, what: str, **kw):
+    """``(path, file)``: ``path`` (a str or os.PathLike) opened for writing by a trace of the Python
+    API (``what``: "VCD", "CSV", ...); ConfigError naming the path for anything that cannot be."""
+    try:
+        path = os.fspath(path)
+    except TypeError:
+        raise ConfigError(f"{what}: {path!r:.80} is not a file name (nor a file object)") from None
+    if not path:
+        raise ConfigError(f"{what}: an empty file name")
+    if os.path.isdir(path):
+        raise ConfigError(f"{what} {path}: is a folder; give a file name")
+    try:
+        return path, open(path, "w", **kw)
+    except OSError as exc:
+        raise ConfigError(f"{what} {path}: cannot write it ({exc.strerror or exc})") from None
+
+
 def _special(path: str) -> bool:
     """An existing file that is not a regular file (a device, a FIFO): written in place."""
     try:

@@ -41,9 +41,9 @@ from __future__ import annotations
 import contextlib
 import fnmatch
 import json
-import os
 
 from .errors import ConfigError
+from .outputs import open_output
 from .registers import Peripheral
 
 
@@ -100,6 +100,9 @@ def _matcher(filter):
     """``match(member, periph, reg)`` deciding one register for ``filter``, or None for no filter."""
     if filter is None:
         return None
+    if not isinstance(filter, (str, list, tuple, set, frozenset)):
+        raise ConfigError(f"register log filter {filter!r:.60}: give names as text (\"TIM1,TIM2.CCR1\") "
+                          "or a list of them")
     if isinstance(filter, str):
         filter = filter.replace(";", ",").split(",")
     pats = [str(x).strip().upper() for x in filter if str(x).strip()]
@@ -205,8 +208,7 @@ class RegisterLog:
         if hasattr(path_or_file, "write"):
             self._file, self._own, self.path = path_or_file, False, None
         else:
-            self.path = os.fspath(path_or_file)
-            self._file = open(self.path, "w")  # noqa: SIM115 (closed by close())
+            self.path, self._file = open_output(path_or_file, "register log")
             self._own = True
         self._closed = False
         self._hooked: list[Peripheral] = []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import time as _wall
 from collections.abc import Mapping
 
@@ -10,12 +11,23 @@ from .board import build, parse_value, read_profile, split_overrides
 from .engine import DEFAULT_ENGINE, check_engine
 from .errors import ConfigError, McusimError, with_member
 from .system import build_system, close_firmware_tasks, is_system
+from .time import parse_duration
+
+#: the last base tick a run may end at (a signed 64-bit count: what VCD and numpy time columns hold)
+MAX_TICK = 2**63 - 1
 
 
 class Simulation:
     def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False,
                  engine: str | None = DEFAULT_ENGINE):
         engine = check_engine(DEFAULT_ENGINE if engine is None else engine)
+        if not isinstance(firmware, (bool, str, os.PathLike)):
+            raise ConfigError(f"firmware={firmware!r}: expected True (the profile's firmware), False (none) "
+                              "or the path of an ELF image")
+        bad = [k for k in (overrides or {}) if not isinstance(k, str)]
+        if bad:
+            raise ConfigError(f"overrides: key {bad[0]!r} is not text; keys are --set keys such as "
+                              '"motor1.R" or "/motor1/set_pos"')
         overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
         profile, where = read_profile(board)
         if is_system(profile) and not isinstance(firmware, bool):
@@ -85,6 +97,9 @@ class Simulation:
         if self._over is not None:
             raise McusimError(f"run(): this simulation was {self._over}: its firmware's tasks are ended, "
                               "so it cannot run on (load the board again)")
+        if stop is not None and not callable(stop):
+            raise McusimError(f"run(stop={stop!r:.60}): stop is a function called after every event "
+                              "(the run ends when it returns true)")
         given = [x is not None for x in (cycles, seconds, until, until_tick)]
         if sum(given) != 1:
             raise McusimError("run() takes exactly one of cycles=, seconds=, until=, until_tick=")
@@ -93,14 +108,18 @@ class Simulation:
                 raise McusimError(f"run(cycles={cycles!r}): expected a whole number of cycles >= 0")
             end = self.kernel.now + self.mcu.core_clock.cycles(int(cycles))
         elif seconds is not None:
-            end = self.kernel.now + self.timebase.ticks(seconds, rounding=True)
+            end = self.kernel.now + self._ticks_of("seconds", seconds)
         elif until is not None:
-            end = self.timebase.ticks(until, rounding=True)
+            end = self._ticks_of("until", until)
         else:
             if isinstance(until_tick, bool) or not isinstance(until_tick, int) and (
                     not isinstance(until_tick, float) or not until_tick.is_integer()):
                 raise McusimError(f"run(until_tick={until_tick!r}): expected a whole number of base ticks")
             end = int(until_tick)
+        if end > MAX_TICK:
+            raise McusimError(f"run(): the end asked for ({end / self.timebase.base_hz:.3g} s) is "
+                              f"beyond the last tick a simulation counts (2**63 - 1, "
+                              f"{MAX_TICK / self.timebase.base_hz:.3g} s at this board's time base)")
         if end < self.kernel.now:
             raise McusimError(f"run(): the end asked for (tick {end}) is before now (tick {self.kernel.now}, "
                               f"{self.time_s:.9g} s); until= and until_tick= are absolute")
@@ -112,6 +131,18 @@ class Simulation:
         for tr in self._traces:
             tr.flush(self.kernel.now)
         return self
+
+    def _ticks_of(self, arg: str, value) -> int:
+        """``run(seconds=...)`` or ``run(until=...)`` in base ticks, rounded to the nearest one; a
+        positive time shorter than half a tick (which would round to no time at all) is refused."""
+        if isinstance(value, bool):
+            raise McusimError(f"run({arg}={value!r}): expected a number of seconds or a duration with a "
+                              "unit (\"2ms\")")
+        ticks = self.timebase.ticks(value, rounding=True)
+        if ticks == 0 and parse_duration(value) > 0:
+            raise McusimError(f"run({arg}={value!r}): shorter than half a base tick "
+                              f"(1/{self.timebase.base_hz} s), which would run no time at all")
+        return ticks
 
     # --- pins, topics -------------------------------------------------------------------------------
     def pin(self, name: str):
@@ -134,6 +165,13 @@ class Simulation:
         ``path`` is what pyserial or pymavlink opens), ``"buffer"`` (in memory: ``.sent``, the recent
         bytes sent, and ``.feed()``), or an endpoint object. Returns the endpoint."""
         from .hostserial import BufferEndpoint, PtyEndpoint
+        if member is not None and member not in self.members:
+            raise ConfigError(f"connect_serial(member={member!r}): no such board; boards: "
+                              f"{', '.join(self.members)}")
+        if not (isinstance(endpoint, str) and endpoint in ("pty", "buffer")) and not (
+                hasattr(endpoint, "attach") and hasattr(endpoint, "transmit")):
+            raise ConfigError(f"connect_serial({uart!r}, {endpoint!r}): the endpoint is \"pty\", "
+                              "\"buffer\" or an object with attach(usart) and transmit(byte, tick)")
         mcu = self.members[member]["mcu"] if member else self.mcu
         periph = mcu.periph.get(uart)
         if periph is None or not hasattr(periph, "connect"):

@@ -134,6 +134,9 @@ def wait_until(sim, condition, timeout="1s", poll=None, *, message: str | None =
     error (default: the lambda's source, or the function's name).
     """
     __tracebackhide__ = True    # pytest: show the failure at the caller's line
+    if not callable(condition):
+        raise McusimError(f"wait_until(sim, {condition!r:.60}): the condition is a function to call, "
+                          "such as lambda: sim.topic('/motor1/get_pos') > 1.0")
     start = sim.kernel.now
     end = start + _ticks(sim, timeout)
     if condition():

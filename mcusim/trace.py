@@ -45,21 +45,29 @@ import os
 
 from vcd import VCDWriter
 
+from .errors import ConfigError, TimeError
 from .kernel import PRIO_OBSERVE
+from .outputs import open_output
 
 
 class VcdTrace:
     def __init__(self, sim, path, sample="50us"):
         self.sim = sim
-        self.path = os.fspath(path)
         self.base_hz = sim.timebase.base_hz
+        try:
+            self.period = sim.timebase.ticks(sample, rounding=True)
+        except TimeError as exc:    # a bad unit, not a number
+            raise ConfigError(f"VCD sample {sample!r}: {exc}") from None
+        if self.period <= 0:        # else a VCD without its plant variables' samples, silently
+            raise ConfigError(f"VCD sample {sample!r}: must be at least one base tick "
+                              f"(1/{sim.timebase.base_hz} s); the command line's finest is 1us")
         # (group, full hierarchical name, VCD type) of every variable, in declaration order; the
         # group is a board scope, a bus scope, "irq" or "plant" (see write_gtkw)
         self.signals: list[tuple[str, str, str]] = []
         self._order: dict = {}      # variable -> its index in signals (the write order in a timestamp)
         self._pend: list = []       # the changes of timestamp _pend_ps not written yet (see _write)
         self._pend_ps = None
-        self._file = open(path, "w")  # noqa: SIM115 (open for the trace's lifetime; close() closes it)
+        self.path, self._file = open_output(path, "VCD")   # open for the trace's lifetime; close() closes it
         self.w = VCDWriter(self._file, timescale="1 ps", date="", comment=f"mcusim {sim.board_name}")
         board = sim.board_name
         now = self._ps(sim.kernel.now)
@@ -107,8 +115,7 @@ class VcdTrace:
             net = getattr(part, "ocd", None)
             if net is not None and hasattr(net, "listen"):
                 self._wire(f"{board}.plant", f"{name}.ocd", net, group="plant")
-        self.period = sim.timebase.ticks(sample, rounding=True)
-        if self._reals and self.period > 0:
+        if self._reals:
             sim.kernel.at(sim.kernel.now, self._sample, prio=PRIO_OBSERVE)
         self._t0 = now
 

@@ -1,0 +1,108 @@
+"""The Python API answers a wrong argument with an mcusim error that names it, never with a
+TypeError or AttributeError from deep inside, and never by doing something else silently (a
+review found each of these)."""
+
+import pytest
+
+import mcusim
+from mcusim.errors import ConfigError, McusimError
+from mcusim.testing import wait_until
+
+
+@pytest.fixture(scope="module")
+def bare():
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    yield sim
+    sim.close()
+
+
+@pytest.mark.parametrize("kw, words", [
+    ({"seconds": True}, "expected a number of seconds"),
+    ({"until": False}, "expected a number of seconds"),
+    ({"seconds": 1e300}, "beyond the last tick"),
+    ({"seconds": 1e-12}, "shorter than half a base tick"),
+    ({"seconds": 0.001, "stop": 5}, "stop is a function"),
+])
+def test_run_refuses_a_time_it_would_not_run_as_asked(bare, kw, words):
+    now = bare.kernel.now
+    with pytest.raises(McusimError, match=words):
+        bare.run(**kw)
+    assert bare.kernel.now == now
+
+
+def test_run_of_zero_seconds_is_no_time_and_no_error(bare):
+    now = bare.kernel.now
+    bare.run(seconds=0)
+    assert bare.kernel.now == now
+
+
+def test_wait_until_needs_a_function():
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    with pytest.raises(McusimError, match="function to call"):
+        wait_until(sim, True)
+
+
+@pytest.mark.parametrize("kw, words", [
+    ({"firmware": 5}, "firmware=5"),
+    ({"overrides": {5: 1}}, "key 5 is not text"),
+])
+def test_load_refuses_arguments_of_the_wrong_kind(kw, words):
+    with pytest.raises(ConfigError, match=words):
+        mcusim.load("nucleo-f746", **kw)
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda m: m.write32(0x40010034, -1), "bus value -1"),
+    (lambda m: m.write32(0x40010034, 1.5), "bus value 1.5"),
+    (lambda m: m.write32(0x40010034, 1 << 32), "32-bit write"),
+    (lambda m: m.write8(0x40010034, None), "bus value None"),
+    (lambda m: m.read32("TIM1"), "bus address 'TIM1'"),
+])
+def test_bus_access_from_a_test_checks_its_address_and_value(bare, call, words):
+    with pytest.raises(McusimError, match=words):
+        call(bare.mcu)
+
+
+def test_a_written_register_reads_back_through_the_checked_api(bare):
+    bare.mcu.write32(0x40010034, 0x1234)     # TIM1.CCR1 (preload off after reset)
+    assert bare.mcu.read32(0x40010034) == 0x1234
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda s, d: s.trace_vcd(d / "x.vcd", sample=0), "at least one base tick"),
+    (lambda s, d: s.trace_vcd(d / "x.vcd", sample="1ps"), "at least one base tick"),
+    (lambda s, d: s.trace_vcd(d / "x.vcd", sample="soon"), "bad duration"),
+    (lambda s, d: s.trace_vcd(d), "is a folder"),
+    (lambda s, d: s.trace_vcd(d / "no" / "x.vcd"), "cannot write it"),
+    (lambda s, d: s.trace_csv(d / "no" / "x.csv"), "cannot write it"),
+    (lambda s, d: s.trace_registers(None), "not a file name"),
+    (lambda s, d: s.trace_registers(d / "r.jsonl", filter=5), "give names as text"),
+])
+def test_a_trace_with_a_bad_path_or_sample_is_refused_naming_it(tmp_path, call, words):
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    with pytest.raises(ConfigError, match=words):
+        call(sim, tmp_path)
+    sim.close()
+
+
+def test_connect_serial_refuses_an_unknown_endpoint_word_and_member():
+    sim = mcusim.load("ciaa-edu")
+    with pytest.raises(ConfigError, match='"pty", "buffer" or an object'):
+        sim.connect_serial("USART2", "tcp")
+    with pytest.raises(ConfigError, match="no such board"):
+        sim.connect_serial("USART2", "buffer", member="x")
+    ep = sim.connect_serial("USART2", "buffer")     # the line is still free after the refusals
+    sim.run(seconds="1ms")
+    sim.close()
+    assert ep.usart is not None
+
+
+@pytest.mark.parametrize("data", [300, "abc", [300], None, [True]])
+def test_feed_takes_bytes_not_a_count_or_text(data):
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART2", "buffer")
+    with pytest.raises(McusimError, match="give bytes"):
+        ep.feed(data)
+    ep.feed([0x41, 0x42])               # a list of byte values is bytes
+    ep.feed(bytearray(b"C"))
+    sim.close()
