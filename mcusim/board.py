@@ -9,6 +9,7 @@ point), never a Python object to import. The whole format is in ``docs/boards.md
 from __future__ import annotations
 
 import importlib.resources
+import inspect
 from fractions import Fraction
 from pathlib import Path
 
@@ -25,6 +26,8 @@ from .time import TimeBase, parse_frequency
 
 # the errors a model's constructor raises for a value it cannot take: reported as one line naming
 # the peripheral, part or firmware (the schema catches the common mistakes first, with their line)
+#: the ATmega328P's I/O registers in data space: 64 I/O and 160 extended I/O (datasheet, memory map)
+AVR_IO = (0x20, 0xFF)
 BUILD_ERRORS = (TypeError, ValueError, ArithmeticError, LookupError, AttributeError)
 
 
@@ -83,6 +86,30 @@ def profile_files(board: str) -> list:
             if isinstance(m, dict) and isinstance(m.get("board"), str):
                 files += [f for f in [profile_file(m["board"])] if f is not None]
     return files
+
+
+def _check_pins_have_ports(profile, where, mcu) -> None:
+    """Every pin a peripheral named (an external interrupt's ``pins``) is a pin of a declared port:
+    a peripheral creates the pins it names, so a misspelt one (``PD9``) would be a pin of its own
+    that nothing drives, and the interrupt would never fire."""
+    owned = set()
+    for p in mcu.periph.values():
+        for item in getattr(p, "pins", None) or ():
+            owned.update(id(n) for n in (item if isinstance(item, list) else [item]))
+    for name, net in mcu.pins.items():
+        if id(net) in owned:
+            continue
+        for index, spec in enumerate(profile.get("peripheral", [])):
+            for key, value in spec.items():
+                if value == name or (isinstance(value, list) and name in value):
+                    raise _located(profile, where, f"peripheral {spec.get('name')}: {key} = {value!r}: no "
+                                   f"port has a pin {name} (ports: {', '.join(_port_names(mcu)) or 'none'})",
+                                   "peripheral", index, key)
+        raise ConfigError(f"{where}: pin {name} belongs to no port")
+
+
+def _port_names(mcu):
+    return [n for n, p in mcu.periph.items() if hasattr(p, "connect_override")]
 
 
 def parse_value(text: str):
@@ -179,9 +206,10 @@ def board_clocks(profile: dict) -> list:
     return [parse_frequency(f) for f in freqs]
 
 
-def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
+def _resolve_peripheral_refs(spec, mcu, kernel, buses, where, kind=None):
     """Peripheral parameters that name shared objects: ``inputs = {0 = "A0"}`` (analog nets of the
-    MCU) and ``bus = "i2c0"`` (a bus shared by every MCU of the system)."""
+    MCU) and ``bus = "i2c0"`` (a bus shared by every MCU of the system; the kind's default bus
+    where the profile names none)."""
     from .i2c import I2cBus
     from .signals import AnalogNet
     out = {}
@@ -191,8 +219,8 @@ def _resolve_peripheral_refs(spec, mcu, kernel, buses, where):
             net = mcu.analog.setdefault(net_name, AnalogNet(net_name))
             nets[int(ch)] = net
         out["inputs"] = nets
-    if "bus" in spec:
-        name = spec["bus"]
+    if "bus" in spec or (kind is not None and "bus" in kind.params):
+        name = spec["bus"] if "bus" in spec else kind.params["bus"].default
         if name not in buses:
             buses[name] = I2cBus(kernel, name)
         out["bus"] = buses[name]
@@ -314,6 +342,10 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
                     continue
                 raise _PartError(f"part {name}: terminal {term} is not wired in [pins]", name, None, None, where)
             args[term.lower()] = net
+        missing = _missing_args(cls, 1, {"name", *args, *params})
+        if missing:
+            raise _PartError(f"part {name} ({kind.name}): missing {missing} = ... (it has no default)",
+                             name, None, None, where)
         try:
             parts[name] = cls(kernel, name=name, **args, **params)
         except _PartError:
@@ -332,15 +364,30 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
     return parts
 
 
-def _check_irq_numbers(spec: dict, limit: int, what: str, where: str) -> None:
-    """Interrupt numbers a peripheral is given must exist on the core (NVIC lines, AVR vectors)."""
+def _missing_args(cls, positional: int, given: set) -> str | None:
+    """The first parameter without a default that the constructor of ``cls`` would miss (after
+    the ``positional`` arguments passed by position), else None: named as the profile key, not as
+    Python's "missing 1 required positional argument"."""
+    params = list(inspect.signature(cls.__init__).parameters.values())[1 + positional:]
+    for prm in params:
+        if (prm.default is inspect.Parameter.empty and prm.name not in given
+                and prm.kind in (prm.POSITIONAL_OR_KEYWORD, prm.KEYWORD_ONLY)):
+            return prm.name
+    return None
+
+
+def _check_irq_numbers(spec: dict, limit: int, what: str, where: str, kind=None) -> None:
+    """Interrupt numbers a peripheral is given, or takes by default, must exist on the core (NVIC
+    lines, AVR vectors)."""
     for key in ("irq", "irqs", "vector", "vectors"):
-        v = spec.get(key)
+        given = key in spec
+        v = spec.get(key) if given else getattr(kind, "params", {}).get(key)
+        v = getattr(v, "default", v)
         values = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
         for n in values:
             if isinstance(n, int) and not 0 <= n < limit:
-                raise ConfigError(f"{where}: peripheral {spec['name']}: {key} {n} is not one of the "
-                                  f"core's {limit} {what}")
+                raise ConfigError(f"{where}: peripheral {spec['name']}: {key} {n}{'' if given else ' (its default)'} "
+                                  f"is not one of the core's {limit} {what}")
 
 
 def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
@@ -392,10 +439,10 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         pwhere = f"{where}: peripheral {spec.get('name')}"
         kind = kinds.lookup("peripheral", spec.get("kind"), pwhere)
         cls = kind.load()
-        _check_irq_numbers(spec, limit, what, where)
+        _check_irq_numbers(spec, limit, what, where, kind)
         kwargs = _part_params(kind, {k: v for k, v in spec.items() if k not in ("base", "clock", "outputs")},
                               {}, spec["name"], where)
-        kwargs.update(_resolve_peripheral_refs(spec, mcu, kernel, buses, where))
+        kwargs.update(_resolve_peripheral_refs(spec, mcu, kernel, buses, where, kind))
         if kind.name == "stm32-rcc":
             kwargs["sysclk_hz"] = sysclk
         if "clock" in spec:
@@ -403,11 +450,21 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                 raise _located(profile, where, f"peripheral {spec['name']}: no clock {spec['clock']!r} "
                                f"(clocks: {', '.join(mcu.clocks)})", "peripheral", index, "clock")
             kwargs["clock"] = mcu.clocks[spec["clock"]]
+        missing = _missing_args(cls, 2, set(kwargs))
+        if missing:
+            raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): missing {missing} = ... "
+                           "(it has no default)", "peripheral", index)
         try:
             p = cls(spec["name"], mcu, **kwargs)
             mcu.periph[spec["name"]] = p
             if p.BUS_WIDTH == 1:
-                bus.attach_registers(spec.get("base", 0), p)  # AVR: registers scattered in data space
+                base = spec.get("base", 0)
+                bad = [r for r in p.REGISTERS if not AVR_IO[0] <= base + r.offset <= AVR_IO[1]]
+                if avr and bad:
+                    raise ConfigError(f"base = {base:#x} puts {bad[0].name} at {base + bad[0].offset:#x}, outside "
+                                      f"the I/O space ({AVR_IO[0]:#x}-{AVR_IO[1]:#x}) where the firmware reaches "
+                                      "its registers")
+                bus.attach_registers(base, p)  # AVR: registers scattered in data space
             else:
                 bus.attach(spec["base"], p)
         except ConfigError as exc:      # about this peripheral's declaration: at its table
@@ -422,6 +479,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                            index) from None
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
+    _check_pins_have_ports(profile, where, mcu)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
     for pin_name, level in profile.get("pull", {}).items():
         if level not in (0, 1):
@@ -431,9 +489,15 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         except ConfigError as exc:
             raise _located(profile, where, f"[pull] {exc}", "pull", None, pin_name) from None
         net.set_pull(level)
-    # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1)
+    # peripheral outputs that take over a port pin (AVR: OC1A on PB1 while DDRB1 = 1), one per pin
+    taken: dict = {}
     for index, spec in enumerate(profile.get("peripheral", [])):
         for out, pin_name in spec.get("outputs", {}).items():
+            if pin_name in taken:
+                raise _located(profile, where, f"peripheral {spec['name']}: outputs.{out} = {pin_name!r}: "
+                               f"{taken[pin_name]} already drives that pin (one output per pin)",
+                               "peripheral", index, "outputs", out)
+            taken[pin_name] = f"{spec['name']} output {out}"
             try:
                 net = mcu.pin(pin_name)
             except ConfigError as exc:
@@ -442,11 +506,12 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             owner = next((q for q in mcu.periph.values() if net in getattr(q, "pins", ())
                           and hasattr(q, "connect_override")), None)
             if owner is None:
-                raise ConfigError(f"{where}: peripheral {spec['name']}: no port owns pin {pin_name}")
+                raise _located(profile, where, f"peripheral {spec['name']}: no port owns pin {pin_name}",
+                               "peripheral", index, "outputs", out)
             oc = getattr(mcu.periph[spec["name"]], "oc", {})
             if out not in oc:
-                raise ConfigError(f"{where}: peripheral {spec['name']}: no output {out!r} "
-                                  f"(outputs: {', '.join(oc) or 'none'})")
+                raise _located(profile, where, f"peripheral {spec['name']}: no output {out!r} "
+                               f"(outputs: {', '.join(oc) or 'none'})", "peripheral", index, "outputs", out)
             owner.connect_override(owner.pins.index(net), oc[out])
 
     if not avr:
@@ -485,9 +550,11 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         if src is None and not terminal:
             src = parts.get(part_name)
         if src is None or not hasattr(src, "voltage"):
-            raise ConfigError(f"{where}: [analog] {net_name} = {target!r}: no such analog output")
+            raise _located(profile, where, f"[analog] {net_name} = {target!r}: no such analog output",
+                           "analog", None, net_name)
         if net_name not in mcu.analog:
-            raise ConfigError(f"{where}: [analog] {net_name}: no peripheral reads this analog input")
+            raise _located(profile, where, f"[analog] {net_name}: no peripheral reads this analog input",
+                           "analog", None, net_name)
         mcu.analog[net_name].source = src.voltage
 
     firmware = None
@@ -503,6 +570,10 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             raise ConfigError(f"{where}: the board has no [firmware]")
         kind = kinds.lookup("firmware", fw.get("kind"), f"{where}: [firmware]")
         cls = kind.load()
+        family = getattr(cls, "CORE", None)
+        if family is not None and not core.get("kind", "").startswith(family):
+            raise ConfigError(f"{where}: firmware {kind.name} runs on a core of the {family} family; this "
+                              f"board's [core] is {core.get('kind')!r}")
         params = {k: v for k, v in fw.items() if k != "kind"}
         params.update(firmware_params)
         try:

@@ -37,6 +37,7 @@ class Kind:
     params: dict = field(default_factory=dict)
     doc: str = ""
     terminals: tuple = ((), ())          # parts: (required, optional) digital terminals
+    outputs: tuple | None = None         # parts: the terminals it drives (None: not declared)
     refs: tuple = ()                     # parts: parameters naming other parts
     ref_kinds: dict = field(default_factory=dict)   # parts: ref -> the part kinds it may name
     needs: tuple = ()                    # peripherals: "base", "clock"
@@ -245,7 +246,7 @@ PARTS = {k.name: k for k in (
         V_pullup=_num(3.3, above=0, max=5.5, unit="V", doc="EN pull-up supply"),
         V_th=_num(1.8, above=0, max=5.5, unit="V", doc="EN threshold, below V_pullup"),
         drive_en=Param(False, doc="the bridge drives EN low on over-current"))},
-        "one full bridge of an ST L6206", terminals=(("IN1", "IN2", "EN"), ()), refs=("motor",),
+        "one full bridge of an ST L6206", terminals=(("IN1", "IN2", "EN"), ()), outputs=("EN",), refs=("motor",),
         ref_kinds={"motor": ("dcmotor",)},
         rules=(lambda v: None if v["V_th"] < v["V_pullup"] else
                f"V_th = {v['V_th']:g} V must be below V_pullup = {v['V_pullup']:g} V",)),
@@ -263,11 +264,11 @@ PARTS = {k.name: k for k in (
         Vcc=_num(5.0, above=0, max=5.5, unit="V", doc="logic supply (IS clamp)"),
         cl_action=Param("other", choices=("other", "off"), doc="current limit: switch to the other side or off"))},
         "IBT-2: two Infineon BTS7960 half bridges", terminals=(("RPWM", "LPWM"), ("R_EN", "L_EN")),
-        refs=("motor",), ref_kinds={"motor": ("dcmotor",)}),
+        outputs=(), refs=("motor",), ref_kinds={"motor": ("dcmotor",)}),
     Kind("part", "encoder", "mcusim.plant.encoder:QuadratureEncoder", _P(
         counts_per_rev=Param(64, min=1, max=100_000, unit="counts per motor turn",
                              doc="quadrature counts (4 per line of the disc)")),
-        "quadrature encoder on the motor shaft", terminals=(("A", "B"), ()), refs=("motor",),
+        "quadrature encoder on the motor shaft", terminals=(("A", "B"), ()), outputs=("A", "B"), refs=("motor",),
         ref_kinds={"motor": ("dcmotor",)}),
     Kind("part", "battery", "mcusim.plant.parts:BatteryPart", _P(
         count=Param(2, min=1, max=8, doc="12 V batteries in parallel"),
@@ -298,7 +299,7 @@ PARTS = {k.name: k for k in (
         "skid-steer or differential rover body on its wheel motors", refs=("motors",),
         ref_kinds={"motors": ("dcmotor",)}),
     Kind("part", "estop", "mcusim.plant.parts:EStopPart", {}, "E-stop button cutting the motor-enable line",
-         terminals=(("ENABLE_IN",), ("ENABLE_OUT", "SENSE"))),
+         terminals=(("ENABLE_IN",), ("ENABLE_OUT", "SENSE")), outputs=("ENABLE_OUT", "SENSE")),
 )}
 
 # --- firmware ---------------------------------------------------------------------------------------
@@ -348,7 +349,7 @@ def register(group: str, name: str, cls, **declared) -> Kind:
 
 
 def _declare(kind: Kind, cls) -> None:
-    """Take a registered class's declarations (PARAMS, TERMINALS, REFS, NEEDS)."""
+    """Take a registered class's declarations (PARAMS, TERMINALS, OUTPUTS, REFS, NEEDS)."""
     if not isinstance(cls, type):
         raise ConfigError(f"{kind.group} kind {kind.name!r} ({kind.origin}) is not a class")
     params = getattr(cls, "PARAMS", None)
@@ -356,6 +357,8 @@ def _declare(kind: Kind, cls) -> None:
     kind.params = dict(params or {})
     kind.terminals = tuple(tuple(t) for t in getattr(cls, "TERMINALS", ((), ())))
     kind.refs = tuple(getattr(cls, "REFS", ()))
+    outputs = getattr(cls, "OUTPUTS", None)
+    kind.outputs = None if outputs is None else tuple(outputs)
     kind.needs = tuple(getattr(cls, "NEEDS", ()))
     kind.doc = (cls.__doc__ or "").strip().split("\n")[0]
     kind._cls = cls

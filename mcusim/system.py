@@ -173,13 +173,19 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
         member, _, net_name = target.partition(".")
         mcu = members.get(member, {}).get("mcu")
         if mcu is None or net_name not in mcu.analog:
-            raise ConfigError(f"{where}: [analog] {target!r}: no analog input {net_name!r} on {member!r}")
+            raise _located(profile, where, f"[analog] {target!r}: no analog input {net_name!r} on {member!r}",
+                           "analog", None, target)
         part_name, _, term = source.partition(".")
         src = sys_parts.get(part_name)
         if term:
             src = getattr(src, term.lower(), None)
         if src is None or not hasattr(src, "voltage"):
-            raise ConfigError(f"{where}: [analog] {target} = {source!r}: no such analog output")
+            raise _located(profile, where, f"[analog] {target} = {source!r}: no such analog output",
+                           "analog", None, target)
+        if mcu.analog[net_name].source is not None:
+            raise _located(profile, where, f"[analog] {target} = {source!r}: {member}'s {net_name} already "
+                           "follows an output of its own board's plant (one analog input, one source; give "
+                           "the member plant = false to wire its plant here)", "analog", None, target)
         mcu.analog[net_name].source = src.voltage
     return sys_parts
 
@@ -210,6 +216,28 @@ def _firmware_params(board: dict, where: str) -> dict:
     return getattr(kinds.lookup("firmware", kind, where).load(), "PARAMS", {}) if kind else {}
 
 
+def _check_link_source(profile, where, source) -> None:
+    """A [links] source is a terminal the system part drives (an E-stop's ENABLE_OUT), and one its
+    [pins] do not wire too: a link from an input would carry nothing, and the part would lose
+    the pin its input reads."""
+    from . import kinds
+    part, _, term = source.partition(".")
+    spec = next((p for p in profile.get("part", []) if p.get("name") == part), None)
+    if spec is None:
+        return                  # build_parts names the unknown part
+    kind = kinds.lookup("part", spec.get("kind"), where)
+    outputs = kind.outputs
+    if outputs is not None and term.upper() not in outputs:
+        raise _located(profile, where, f"[links] {source}: {term} is not an output of {part} ({kind.name}); a "
+                       f"link carries what a part drives (its outputs: {', '.join(outputs) or 'none'})",
+                       "links", None, source)
+    pin = next((p for p, t in profile.get("pins", {}).items() if t.partition(".")[0] == part
+                and t.partition(".")[2].upper() == term.upper()), None)
+    if pin is not None:
+        raise _located(profile, where, f"[links] {source}: [pins] wires it to {pin} as well; a terminal has "
+                       "one net", "links", None, source)
+
+
 def _check_link_target(profile, where, source, target, board, part, term) -> None:
     """A [links] target names a part of the member's board and one of its kind's terminals: the
     mistake is the system file's, at its [links] line (the board's own check would blame the
@@ -224,6 +252,12 @@ def _check_link_target(profile, where, source, target, board, part, term) -> Non
     if term.upper() not in required + optional:
         raise _located(profile, where, f"[links] {source}: {target!r}: part {part} ({spec.get('kind')}) has "
                        f"no terminal {term}; terminals: {', '.join(required + optional) or 'none'}",
+                       "links", None, source)
+    pin = next((p for p, t in board.get("pins", {}).items() if t.partition(".")[0] == part
+                and t.partition(".")[2].upper() == term.upper()), None)
+    if pin is not None:
+        raise _located(profile, where, f"[links] {source}: {target!r}: the board's own [pins] wire it to its "
+                       f"pin {pin}; a terminal has one net",
                        "links", None, source)
 
 
@@ -265,6 +299,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
     # nets that system parts drive into board parts: created first, handed to both sides
     link_nets, external = {}, {name: {} for name in names}
     for source, targets in profile.get("links", {}).items():
+        _check_link_source(profile, where, source)
         net = link_nets[source] = Net(source, pull=0)
         for target in ([targets] if isinstance(targets, str) else targets):
             member, _, rest = target.partition(".")

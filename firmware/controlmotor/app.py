@@ -77,6 +77,7 @@ class Topic:
 
 class ControlMotorFirmware:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    CORE = "cortex-m"            # the cores it runs on (a profile's [core] kind starts with it)
     INPUTS = INPUTS              # the topics a host publishes to, checked (mcusim boards --kinds)
 
     def __init__(self, mcu, **params):

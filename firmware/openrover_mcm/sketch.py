@@ -88,6 +88,7 @@ def counts_to_rpm(counts_s: float) -> float:
 
 class OpenRoverMcm:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    CORE = "avr"                 # the cores it runs on (a profile's [core] kind starts with it)
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
     INPUTS = INPUTS              # and their checked values (mcusim boards --kinds)
 

@@ -149,6 +149,7 @@ INPUTS = {
 
 class RoverControl:
     PARAMS = DEFAULTS            # declared parameters (firmware.<name>), checked by mcusim.params
+    CORE = "cortex-m"            # the cores it runs on (a profile's [core] kind starts with it)
     MAVLINK_UART = "USART3"      # the UART of the MAVLink task (mcusim run --mavlink connects it)
     HOST_INPUTS = HOST_INPUTS    # inputs a host can give (--set <name>=...)
     INPUTS = INPUTS              # and their checked values (mcusim boards --kinds)
@@ -170,6 +171,10 @@ class RoverControl:
         if len(self.modules) != self.layout.wheels:
             raise ConfigError(f"firmware.modules: {len(self.modules)} addresses for a {kind} layout "
                               f"of {self.layout.wheels} wheels")
+        twice = next((a for i, a in enumerate(self.modules) if a in self.modules[:i]), None)
+        if twice is not None:   # one module would answer for two wheels, the other never driven
+            raise ConfigError(f"firmware.modules: address {twice:#04x} is given twice; each wheel's module "
+                              "has its own")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
         self.rtos.tick_hz = p["tick_hz"]
         self.board = CiaaBoard(mcu, adc_clkdiv=p["adc_clkdiv"])

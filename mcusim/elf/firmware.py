@@ -87,11 +87,36 @@ def read_topic_map(elf_path: str, image) -> dict:
             raise ConfigError(f"{where}: topic {name}: {sym} is {image.sizes[sym]} bytes, not a {spec['type']}")
         count = None
         if "count" in spec:
+            if spec["direction"] != "sub":
+                raise ConfigError(f"{where}: topic {name}: count goes with direction = \"sub\" (the host "
+                                  "increments it after each write; a pub topic is only read)")
             if spec["count"] not in image.symbols:
                 raise ConfigError(f"{where}: topic {name}: the ELF has no symbol {spec['count']!r} (count)")
+            if spec["count"] == sym:
+                raise ConfigError(f"{where}: topic {name}: count = {sym!r} is the topic's own symbol; the count "
+                                  "is a u32 of its own")
+            if image.sizes.get(spec["count"]) not in (0, 4, None):
+                raise ConfigError(f"{where}: topic {name}: count {spec['count']} is "
+                                  f"{image.sizes[spec['count']]} bytes, not a u32")
             count = image.symbols[spec["count"]]
         out[name] = ElfTopic(name, image.symbols[sym], spec["type"], spec["direction"], count)
+    _no_shared_storage(out, where)
     return out
+
+
+def _no_shared_storage(topics: dict, where: str) -> None:
+    """No two topics (values or counts) share bytes of RAM: a host write to one would change
+    another behind the firmware's back."""
+    spans = sorted((a, a + size, what) for t in topics.values()
+                   for a, size, what in ((t.address, t.size, t.name), (t.count_addr, 4, f"{t.name} (count)"))
+                   if a is not None)
+    end, last = -1, None
+    for a, e, what in spans:
+        if a < end:
+            raise ConfigError(f"{where}: topics {last} and {what} share RAM at {a:#010x}; each needs a symbol "
+                              "of its own")
+        if e > end:
+            end, last = e, what
 
 
 class ElfFirmware:

@@ -69,6 +69,9 @@ def shipped_images() -> dict:
 def resolve_firmware(path):
     """``path`` if it names a file; else a shipped image's name (``controlmotor`` or
     ``controlmotor.elf``), as ``--scenario`` takes shipped scenario names; ConfigError if neither."""
+    if not str(path).strip():
+        raise ConfigError("--firmware: an empty name; give the path of an ELF image (or a shipped image's "
+                          "name: " + ", ".join(shipped_images()) + ")")
     p = Path(path)
     if p.exists() or len(p.parts) > 1:
         return path                      # a path: read_elf reports what is wrong with it
@@ -108,6 +111,11 @@ def read_elf(path) -> ElfImage:
     try:
         elf = ELFFile(io.BytesIO(raw))
         machine = elf["e_machine"]
+        if elf["e_type"] != "ET_EXEC" and machine == "EM_ARM":
+            kind = {"ET_REL": "a relocatable object (.o)", "ET_DYN": "a shared object",
+                    "ET_CORE": "a core dump"}.get(elf["e_type"], f"of type {elf['e_type']}")
+            raise ConfigError(f"{where}: {kind}, not a linked executable (ET_EXEC): link it for the board's "
+                              "memory map first")
         if machine != "EM_ARM" or elf.elfclass != 32 or not elf.little_endian:
             raise ConfigError(f"{where}: an ELF for {machine} ({elf.elfclass}-bit, "
                               f"{'little' if elf.little_endian else 'big'}-endian); the board's core "

@@ -31,6 +31,11 @@ def build_core(profile: dict, mcu, image, memories):
     from .scb import CoreDebug, CoreScb, Dwt, Fpu, Stir
     core_spec = profile["core"]
     kind = core_spec.get("kind", "cortex-m4")
+    boot = core_spec.get("boot_address", 0)
+    if boot % 128:      # VTOR.TBLOFF is bits [31:7] (ARMv7-M ARM B3.2.5): a table is 128-byte aligned
+        msg = (f"[core] boot_address = {boot:#x}: a vector table is aligned to at least 128 bytes "
+               f"(VTOR holds bits 31:7); the nearest are {boot - boot % 128:#x} and {boot - boot % 128 + 128:#x}")
+        raise profile.err(msg, "core", None, "boot_address") if hasattr(profile, "err") else ConfigError(msg)
     bus = mcu.bus
     dwt, fpu = Dwt(mcu), Fpu("FPU")
     bus.attach(0xE000EDF0, CoreDebug(dwt))
@@ -39,7 +44,7 @@ def build_core(profile: dict, mcu, image, memories):
     bus.attach(0xE0001000, dwt)
     core = CortexMCore(mcu, image, memories, kind=kind, cpi=core_spec.get("cycles_per_instruction", 1),
                        entry_latency=core_spec.get("entry_latency", 12),
-                       boot_address=core_spec.get("boot_address", 0))
+                       boot_address=boot)
     fpu.exc = core.exc
     scb = CoreScb(mcu.nvic, core.exc, kind)
     bus.attach(0xE000ED00, scb)           # on the NVIC's page, already mapped into the core

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from ..errors import McusimError
 from ..kernel import PRIO_INPUT
 from ..time import parse_duration
 from .check import _fmt_time
@@ -161,20 +162,39 @@ class Follow(Action):
         src_fw, src = sc._firmware_for(sim, spec["from"], line, where)
         sc._check_output(src_fw, src, line, where)
         dst_fw, dst = sc._firmware_for(sim, spec["to"], line, where)
-        sc._check_input(dst_fw, dst, line, where)
+        # the output's value now stands for its kind (a number, true/false): one the input does
+        # not take is refused here, not at the first forward in the middle of the run
+        sc._check_input(dst_fw, dst, line, where, value=_sample_value(src_fw, src))
         kernel = sim.kernel
         period = sc._ticks(sim.timebase, spec["period"], line, f"{where}: period")
 
         def forward():
             value = src_fw.topic(src)
             if value is not None:
-                dst_fw.publish(dst, value)
+                try:
+                    dst_fw.publish(dst, value)
+                except McusimError as exc:      # a value the input refuses, later in the run
+                    raise sc._err(line, f"{where}: at {kernel.now / sim.timebase.base_hz:.6g} s "
+                                  f"{spec['from']} = {value!r}: {exc}") from None
             kernel.at(kernel.now + period, forward, prio=PRIO_INPUT)
 
         def fn():
             sc._done(f"follow {spec['from']} -> {spec['to']} every {_fmt_time(spec['period'])}")
             forward()
         return fn
+
+
+def _sample_value(fw, name):
+    """A value of the kind output ``name`` gives: its value now, or for a topic not published yet
+    one of its declared type (a Python type, or an ELF topic map's "bool"/"f32"/"u16"...)."""
+    value = fw.topic(name)
+    topic = getattr(fw, "topics", {}).get(name) if value is None else None
+    t = getattr(topic, "type", None)
+    if isinstance(t, type):
+        return t()
+    if isinstance(t, str):
+        return False if t == "bool" else 0.0 if t.startswith("f") else 0
+    return value
 
 
 class Fault(Action):

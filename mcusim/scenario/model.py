@@ -107,6 +107,11 @@ class Scenario(Checker):
         for name, fields in REPORT_FIELDS.items():
             if name in rep:
                 self.report_spec[name] = self._fields("report", None, (name,), rep[name], fields)
+        t0 = self.report_spec.get("follow", {}).get("from")
+        if t0 is not None and t0 > self._duration:     # as [[at]] and [[expect]] times are checked
+            raise self._err(self._line("report", None, "follow", "from"), f"[report] follow: from "
+                            f"{_fmt_time(t0)} is after the end of the run (duration "
+                            f"{_fmt_time(self._duration)}): the report would have no sample")
         for e in self.expects:
             if isinstance(e, _Expect) and e.source[0] == "report":
                 check_report_path(self, e)
@@ -127,6 +132,9 @@ class Scenario(Checker):
             line = self._line("set", None, *key)
             if not name or not isinstance(v, (bool, int, float, str)):
                 raise self._err(line, f"[set]: {name} = {v!r}: expected a number, true/false or a string")
+            if name in self.overrides:      # "motor1.R" = 2.5 and motor1.R = 3: one key written twice
+                raise self._err(line, f"[set]: {name} is set twice (also at line {self._set_lines[name]}, "
+                                "quoted or dotted); keep one")
             self.overrides[name] = v
             self._set_lines[name] = line
 
@@ -173,7 +181,8 @@ class Scenario(Checker):
         from ..board import board_names
         names = board_names()
         return "" if self.board in names else (f" (no shipped board is called {self.board!r}: "
-                                               f"{', '.join(names)}; or run it with that board's file)")
+                                               f"{', '.join(names)}; a profile of your own is matched by "
+                                               "the name in its [board] table)")
 
     def check_board(self, board: str) -> None:
         """ConfigError if the scenario names a board and ``board`` (a name or a profile path) is
@@ -184,8 +193,9 @@ class Scenario(Checker):
         profile = read_profile(board)[0]
         name = (profile.get("board") or profile.get("system") or {}).get("name")
         if name != self.board:
+            which = repr(board) if board == name else f"{board} (its [board] name is {name!r})"
             raise self._err(self._line("scenario", None, "board"),
-                            f"the scenario is meant for board {self.board!r}, not {board!r}{self._no_such_board()}")
+                            f"the scenario is meant for board {self.board!r}, not {which}{self._no_such_board()}")
 
     def build(self, board: str | None = None, overrides: dict | None = None, firmware: bool = True,
               engine: str = "fast"):
