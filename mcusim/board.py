@@ -14,7 +14,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from . import kinds
-from .errors import ConfigError, McusimError
+from .errors import ConfigError, McusimError, read_input
 from .firmware import Cpu, Rtos
 from .irq import AvrInterrupts, Nvic, Scb
 from .kernel import Kernel
@@ -51,7 +51,7 @@ def read_profile(board: str) -> tuple[dict, str]:
     path = Path(board)
     if path.suffix == ".toml" or path.exists() or "/" in str(board):
         try:
-            data, where = path.read_bytes(), str(path)
+            data, where = read_input(path, "board profile", 4 << 20), str(path)
         except OSError as exc:
             raise ConfigError(f"cannot read board profile {str(board)!r}: {exc.strerror or exc}") from None
     else:

@@ -50,3 +50,18 @@ class BusFault(McusimError):
     def __init__(self, address: int, size: int, why: str = "unmapped address"):
         self.address, self.size = address, size
         super().__init__(f"bus fault: {size * 8}-bit access to {address:#010x}: {why}")
+
+
+def read_input(path, what: str, limit: int = 16 << 20) -> bytes:
+    """The bytes of an input file (a profile, a scenario, a firmware image), at most ``limit``:
+    OSError as the callers handle it, ConfigError for a file that is not a regular one (a device
+    such as /dev/zero would be read until memory ran out) or is larger than any such file."""
+    import os
+    import stat
+    with open(path, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise ConfigError(f"{os.fspath(path)}: not a regular file; a {what} is a file")
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise ConfigError(f"{os.fspath(path)}: larger than {limit >> 20} MB; not a {what}")
+    return data

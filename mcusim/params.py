@@ -193,9 +193,11 @@ def check_params(declarations: dict, params: dict, prefix: str) -> dict:
 def firmware_params(defaults: dict, params: dict) -> dict:
     """The firmware's parameters: ``defaults`` (name -> :class:`Param` or plain default) overridden
     by ``params``, each converted and checked; an unknown name or a bad value raises ConfigError."""
-    unknown = set(params) - set(defaults)
+    unknown = sorted(set(params) - set(defaults))
+    if len(unknown) == 1:       # named first, as the key was written: a message located at its line
+        raise ConfigError(f"firmware.{unknown[0]}: unknown firmware parameter (known: {', '.join(sorted(defaults))})")
     if unknown:
-        raise ConfigError(f"unknown firmware parameter(s): {', '.join(sorted(unknown))} "
+        raise ConfigError(f"unknown firmware parameters {', '.join(f'firmware.{k}' for k in unknown)} "
                           f"(known: {', '.join(sorted(defaults))})")
     out = {name: declared(spec).default for name, spec in defaults.items()}
     out.update(check_params(defaults, params, "firmware"))

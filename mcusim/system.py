@@ -193,7 +193,7 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
 def _with_member_hint(exc: ConfigError, main: str, main_fw: dict, member_profiles: dict) -> ConfigError:
     """``firmware.<key>`` is the main board's firmware: where the key is unknown there but another
     member's firmware takes it (the rover's wheel PID on the modules), say how to reach that one."""
-    if not str(exc).startswith("unknown firmware parameter"):
+    if "unknown firmware parameter" not in str(exc):
         return exc
     params = {name: _firmware_params(prof, name) for name, (prof, _) in member_profiles.items()}
     unknown = [k for k in main_fw if k not in params[main]]

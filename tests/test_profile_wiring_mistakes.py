@@ -191,3 +191,20 @@ def test_the_shipped_topic_maps_still_load(tmp_path):
         sim = mcusim.load("nucleo-f746", firmware=FW / f"{name}.elf")
         assert "/motor1/set_pos" in sim.firmware.topics
         sim.close()
+
+
+@pytest.mark.parametrize("argv, what", [
+    (["run", "/dev/zero", "--duration", "1ms"], "a board profile is a file"),
+    (["run", "nucleo-f746", "--scenario", "/dev/zero"], "a scenario is a file"),
+    (["run", "nucleo-f746", "--firmware", "/dev/zero", "--duration", "1ms"], "a firmware image (ELF) is a file"),
+])
+def test_a_device_given_as_an_input_file_is_refused_not_read_until_memory_runs_out(capsys, argv, what):
+    if not Path("/dev/zero").exists():
+        pytest.skip("no /dev/zero here")
+    assert f"/dev/zero: not a regular file; {what}" in _one_error(capsys, argv)
+
+
+def test_an_unknown_firmware_key_in_a_members_own_set_is_named_at_its_line(tmp_path, capsys):
+    path = _edited(tmp_path, "rover-diff", 'set = { "firmware.layout"', 'set = { "firmware.nope" = 1, "firmware.layout"')
+    msg = _one_error(capsys, ["run", path, "--duration", "1ms"])
+    assert f"b.toml:{_line_of(path, 'firmware.nope')}: member rcm: set: firmware.nope: unknown firmware parameter" in msg

@@ -11,7 +11,7 @@ import bisect
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, read_input
 
 PF_X = 1
 
@@ -90,7 +90,7 @@ def read_elf(path) -> ElfImage:
     from elftools.elf.sections import SymbolTableSection
     where = str(path)
     try:
-        raw = Path(path).read_bytes()
+        raw = read_input(path, "firmware image (ELF)", 256 << 20)
     except OSError as exc:
         raise ConfigError(f"cannot read firmware {where!r}: {exc.strerror or exc}") from None
     if raw[:4] != b"\x7fELF":

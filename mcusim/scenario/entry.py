@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import ConfigError, McusimError
+from ..errors import ConfigError, McusimError, read_input
 from .model import Scenario
 from .source import _Lines
 
@@ -38,7 +38,7 @@ def load_scenario(path) -> Scenario:
     mistake raises ConfigError ``<file>:<line>: <problem>``."""
     p = _resolve(path)
     try:
-        data = p.read_bytes()
+        data = read_input(p, "scenario", 4 << 20)
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = data[:exc.start].count(b"\n") + 1
