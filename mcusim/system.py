@@ -231,11 +231,16 @@ def _check_link_source(profile, where, source) -> None:
         raise _located(profile, where, f"[links] {source}: {term} is not an output of {part} ({kind.name}); a "
                        f"link carries what a part drives (its outputs: {', '.join(outputs) or 'none'})",
                        "links", None, source)
-    pin = next((p for p, t in profile.get("pins", {}).items() if t.partition(".")[0] == part
-                and t.partition(".")[2].upper() == term.upper()), None)
+    pin = _pin_wiring(profile, part, term)
     if pin is not None:
         raise _located(profile, where, f"[links] {source}: [pins] wires it to {pin} as well; a terminal has "
                        "one net", "links", None, source)
+
+
+def _pin_wiring(profile, part: str, term: str):
+    """The pin a profile's [pins] wire to terminal ``term`` of ``part``, or None."""
+    return next((p for p, t in profile.get("pins", {}).items() if t.partition(".")[0] == part
+                 and t.partition(".")[2].upper() == term.upper()), None)
 
 
 def _check_link_target(profile, where, source, target, board, part, term) -> None:
@@ -253,12 +258,10 @@ def _check_link_target(profile, where, source, target, board, part, term) -> Non
         raise _located(profile, where, f"[links] {source}: {target!r}: part {part} ({spec.get('kind')}) has "
                        f"no terminal {term}; terminals: {', '.join(required + optional) or 'none'}",
                        "links", None, source)
-    pin = next((p for p, t in board.get("pins", {}).items() if t.partition(".")[0] == part
-                and t.partition(".")[2].upper() == term.upper()), None)
+    pin = _pin_wiring(board, part, term)
     if pin is not None:
         raise _located(profile, where, f"[links] {source}: {target!r}: the board's own [pins] wire it to its "
-                       f"pin {pin}; a terminal has one net",
-                       "links", None, source)
+                       f"pin {pin}; a terminal has one net", "links", None, source)
 
 
 def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool,
