@@ -34,11 +34,31 @@ class Mcu:
     # bus access as firmware (or a test) does it; the arguments checked here (the ported firmware
     # calls the bus itself, with its own ints)
     def read8(self, a): return self.bus.read(_address(a), 1)
-    def read16(self, a): return self.bus.read(_address(a), 2)
     def read32(self, a): return self.bus.read(_address(a), 4)
     def write8(self, a, v): self.bus.write(_address(a), _value(v, 1), 1)
-    def write16(self, a, v): self.bus.write(_address(a), _value(v, 2), 2)
     def write32(self, a, v): self.bus.write(_address(a), _value(v, 4), 4)
+
+    def read16(self, a):
+        """On an 8-bit data bus (AVR) two byte reads, low byte first as avr-gcc emits them (the
+        high byte of a 16-bit timer register comes through TEMP)."""
+        a = _address(a)
+        if self._byte_bus(a):
+            lo = self.bus.read(a, 1)
+            return lo | self.bus.read(a + 1, 1) << 8
+        return self.bus.read(a, 2)
+
+    def write16(self, a, v):
+        """On an 8-bit data bus (AVR) two byte writes, high byte first (into TEMP), as avr-gcc."""
+        a, v = _address(a), _value(v, 2)
+        if self._byte_bus(a):
+            self.bus.write(a + 1, v >> 8, 1)
+            self.bus.write(a, v & 0xFF, 1)
+        else:
+            self.bus.write(a, v, 2)
+
+    def _byte_bus(self, a) -> bool:
+        hit = self.bus.peripheral_at(a)
+        return hit is not None and hit[0].BUS_WIDTH == 1
 
 
 def _address(a) -> int:

@@ -71,12 +71,16 @@ class Oracle:
         K = self.k + 1
         c, d, T = self.c, self.d, self.top()
         old = dict(self.latch)
+        # a TCNT write blocks every compare of the next clock, TOP's too where TOP is OCRnA or
+        # ICR1: "the Compare Match for the TOP will be ignored and the counter will continue to
+        # 0xFFFF" (datasheet, TC1 "Using the Output Compare Unit")
+        top_blocked = K == self.block and self.topsrc in ("A", "I") and T < self.max
         if self.dual:
-            at_top = d > 0 and c == T
+            at_top = d > 0 and c == T and not top_blocked
             at_bottom = c == 0
             at_max = False
         else:
-            at_top = c == T
+            at_top = c == T and not top_blocked
             at_bottom = False
             at_max = c == self.max and not at_top
         # 1. buffer load at the mode's update point

@@ -4,7 +4,7 @@ modes against the per-clock oracle (tests/avr_timer_oracle.py)."""
 import pytest
 from avr_rig import bare_atmega328p
 from avr_timer_oracle import MODES8, OCFA, TOV, Oracle
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from mcusim.periph.avr.timer0 import Timer0
 
@@ -124,6 +124,8 @@ def test_fast_pwm_oc0a_high_ocr_plus_1():
 def test_all_modes_match_oracle(engine, mode, top, ocrb, coma, comb):
     """Both engines (the fast one publishes PWM outputs as steady waveforms, edges expanded from
     the descriptor) against the per-clock oracle: edges, TCNT0 and the lazily set TIFR0."""
+    # COM0B = 01 is reserved in the PWM modes (refused: test_com0b_01_in_a_pwm_mode_is_reserved...)
+    assume(not (comb == 1 and MODES8[mode][0] in ("fast", "pc")))
     rig = Rig(engine)
     _, src = MODES8[mode]
     ocra = top if src == "A" else min(top, 255)
@@ -143,3 +145,36 @@ def test_all_modes_match_oracle(engine, mode, top, ocrb, coma, comb):
     assert rig.t0.counter == orc.c
     assert rig.r(TIFR0) == orc.flags & 7
     assert OCFA == 2
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_tcnt0_write_while_stopped_blocks_the_first_compare_after_the_start(engine):
+    """Datasheet, TC0 "Compare Match Blocking by TCNT0 Write": a write to TCNT0 blocks any compare
+    match in the next timer clock "even when the timer is stopped", so OCR0A may equal TCNT0 at
+    the start without a match."""
+    import mcusim
+    sim = mcusim.load("pro-mini", firmware=False, engine=engine)
+    m = sim.mcu
+    TIFR0, TCCR0B, TCNT0, OCR0A, OCR0B = 0x35, 0x45, 0x46, 0x47, 0x48
+    m.write8(OCR0A, 5)
+    m.write8(OCR0B, 200)
+    m.write8(TCNT0, 5)
+    m.write8(TCCR0B, 1)
+    sim.run(cycles=1)
+    assert m.read8(TIFR0) & 0x02 == 0
+    sim.run(cycles=256)
+    assert m.read8(TIFR0) & 0x02
+    sim.close()
+
+
+@pytest.mark.parametrize("wgm", [(1, 0), (3, 0), (1, 8), (3, 8)])
+def test_com0b_01_in_a_pwm_mode_is_reserved_and_refused(wgm):
+    """TC0's compare output tables for fast PWM and phase correct PWM list COM0B = 01 as
+    "Reserved" (COM0A = 01 toggles OC0A there when WGM02 = 1)."""
+    import mcusim
+    sim = mcusim.load("pro-mini", firmware=False)
+    a, b = wgm
+    with pytest.raises(UnsupportedConfiguration, match="COM0B = 0x1 .reserved in the PWM modes"):
+        sim.mcu.write8(0x44, 0x10 | a)
+        sim.mcu.write8(0x45, b | 1)
+    sim.close()

@@ -531,7 +531,9 @@ def test_non_pwm_modes_match_oracle_including_counter_above_top(mode, top, ocra,
     rig.w(TCCR1A, (com << 6) | (com << 4) | (mode & 3))
     rig.w(TCCR1B, ((mode & 0xC) << 1) | CS10)
     orc = Oracle(mode, ocr=(ocra, ocrb), icr=icr, com=(com, com), tcnt=tcnt)
-    orc.block = -1                      # the TCNT write happened before the clock started
+    # the TCNT write came before the clock started: it blocks the first clock's compares, "even
+    # when the timer is stopped" (datasheet, "Compare Match Blocking by TCNT1 Write")
+    orc.block = 1
     clocks = 3 * (top + 1) + 300
     orc.run(clocks)
     rig.run_clocks(clocks)
@@ -713,3 +715,114 @@ def _write_both(rig, orc, op, data, tsrc, top, ocr):
         b = data.draw(st.sampled_from([TOV, OCFA, OCFB, ICF, TOV | OCFA | OCFB | ICF]))
         rig.w(TIFR1, b)
         orc.flags &= ~b
+
+
+# --- Compare match blocking by a TCNT1 write (datasheet, TC1 "Compare Match Blocking by TCNT1
+# Write" and "Using the Output Compare Unit"; the same for TC0) --------------------------------------
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_tcnt1_write_while_stopped_blocks_the_first_compare_after_the_start(engine):
+    """"All CPU write operations to the TCNT1 Register will block any compare match that occurs in
+    the next timer clock cycle, even when the timer is stopped": OCR1A may be set equal to TCNT1
+    without a match (and an interrupt) at the start. The next pass through the value matches."""
+    rig = Rig(engine)
+    rig.w16(OCR1A, 5)
+    rig.w16(TCNT1, 5)
+    rig.w(TCCR1B, CS10)
+    rig.run_clocks(1)
+    assert rig.r(TIFR1) & OCFA == 0 and rig.t1.counter == 6
+    rig.run_clocks(0x10000)                  # once round: 5 is left again, unblocked
+    assert rig.r(TIFR1) & OCFA
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_tcnt1_write_block_due_at_a_prescaler_change_falls_on_the_new_prescalers_first_clock(engine):
+    """The block is for the next timer clock: a prescaler change before that clock moves it to the
+    first clock at the new rate (it is not a count of the old rate's clocks)."""
+    rig = Rig(engine)
+    rig.w16(OCR1A, 0xFFFF)
+    rig.w16(OCR1B, 0xFFFF)
+    rig.w(TCCR1B, CS10)
+    rig.run_clocks(1000)
+    rig.w16(TCNT1, 0)
+    rig.w16(OCR1A, 985)
+    rig.w(TCCR1B, CS11 | CS10)               # clk/64 before the next clk/1 clock
+    rig.w(TIFR1, 0xFF)
+    rig.kernel.run_until(rig.kernel.now + 64 * rig.P * 990)
+    assert rig.r(TIFR1) & OCFA               # 985 is left at the 986th clk/64 clock: not blocked
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+@pytest.mark.parametrize("mode, topreg", [(14, ICR1), (15, OCR1A), (10, ICR1), (4, OCR1A)])
+def test_tcnt1_written_equal_to_a_variable_top_continues_past_top(engine, mode, topreg):
+    """"Do not write the TCNT1 equal to TOP in PWM modes with variable TOP values. The Compare
+    Match for the TOP will be ignored and the counter will continue to 0xFFFF." The TOP compare
+    is blocked as every compare of that clock is: no TOP flags, the count goes on upwards. In
+    CTC (mode 4) TOP is the same OCR1A compare; the block is taken to act alike there."""
+    rig = Rig(engine)
+    rig.mode(mode)
+    rig.w16(topreg, 999)
+    rig.mode(mode, CS10)
+    rig.run_clocks(500)
+    rig.w16(TCNT1, 999)
+    rig.w(TIFR1, 0xFF)
+    rig.run_clocks(2)
+    assert rig.t1.counter == 1001 and rig.r(TIFR1) & (ICF | OCFA | TOV) == 0
+    rig.run_clocks(0xFFFF - 1001 + 1)        # on to MAX and round to 0, then TOP again as usual
+    assert rig.t1.counter == 0
+    rig.run_clocks(1000)
+    assert rig.r(TIFR1) & (ICF if topreg == ICR1 else OCFA)
+
+
+def test_a_refused_icr1_write_leaves_the_timer_running_as_before():
+    """ICR1 = 0 as the TOP of a dual-slope mode is refused; the timer keeps its TOP and its count
+    (the refused value had been taken before the refusal: ICR1 read 0 and TCNT1 went negative)."""
+    rig = Rig()
+    rig.mode(8)
+    rig.w16(ICR1, 400)
+    rig.mode(8, CS10)
+    rig.run_clocks(100)
+    with pytest.raises(UnsupportedConfiguration, match="ICR1 = 0x0 as TOP"):
+        rig.w16(ICR1, 0)
+    assert rig.r16(ICR1) == 400
+    rig.run_clocks(2000)
+    assert 0 <= rig.t1.counter <= 400 and rig.t1.counter == (2100 % 800 if 2100 % 800 <= 400 else 800 - 2100 % 800)
+
+
+@pytest.mark.parametrize("mode", [9, 11])
+def test_a_buffered_ocr1a_of_0_as_dual_slope_top_is_refused_at_the_write(mode):
+    """Mode 9/11 take TOP from OCR1A through its double buffer: a 0 written there is refused when
+    written, not later from inside the run at the update point."""
+    rig = Rig()
+    rig.w16(OCR1A, 100)
+    rig.mode(mode, CS10)
+    rig.run_clocks(10)
+    with pytest.raises(UnsupportedConfiguration, match="OCR1A = 0x0 as TOP"):
+        rig.w16(OCR1A, 0)
+    rig.run_clocks(1000)                    # runs on with TOP 100
+    assert rig.t1.counter <= 100
+
+
+@pytest.mark.parametrize("mode", [9, 11])
+def test_starting_mode_9_or_11_with_its_top_still_in_the_double_buffer_says_so(mode):
+    rig = Rig()
+    rig.mode(mode)
+    rig.w16(OCR1A, 100)                     # buffered: the active OCR1A (TOP) is still 0
+    with pytest.raises(UnsupportedConfiguration, match="the 100 written to it waits in the double buffer"):
+        rig.mode(mode, CS10)
+
+
+def test_sixteen_bit_api_access_to_an_avr_timer_register_is_two_byte_accesses_through_temp():
+    """The AVR data bus is 8 bits: mcu.write16 is the high byte (into TEMP) then the low byte, and
+    read16 the low byte then the high one, as avr-gcc emits them (a 2-byte access had reached only
+    the low register and committed whatever TEMP held); a 4-byte access is refused."""
+    import mcusim
+    from mcusim.errors import McusimError
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    m.write16(OCR1A, 0x1234)
+    assert m.read16(OCR1A) == 0x1234 and m.read8(OCR1A) == 0x34
+    m.write16(ICR1, 0xABCD)
+    assert m.read16(ICR1) == 0xABCD
+    with pytest.raises(McusimError, match="only 8-bit accesses"):
+        m.write32(TCNT1, 1)
+    sim.close()

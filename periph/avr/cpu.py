@@ -12,6 +12,7 @@ from mcusim.registers import Field, Peripheral, Register
 
 class AvrCpuRegs(Peripheral):
     BUS_WIDTH = 1
+    ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
     REGISTERS = (
         Register("SREG", 0x5F, width=8, on_read="_read_sreg", on_write="_write_sreg",
                  fields=tuple(Field(b, i) for i, b in enumerate("CZNVSHTI"))),

@@ -31,6 +31,7 @@ class _IntPin:
 
 class ExtInt(Peripheral):
     BUS_WIDTH = 1
+    ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
     REGISTERS = (
         Register("EIFR", 0x3C, width=8, on_write="_update", fields=(Field("INTF0", 0, access="w1c"),
                                                                     Field("INTF1", 1, access="w1c"))),

@@ -22,6 +22,7 @@ def _bits(prefix, access="rw"):
 
 class AvrPort(Peripheral):
     BUS_WIDTH = 1
+    ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
     # offsets are relative to the port's PINx address (PINB 0x23, PINC 0x26, PIND 0x29)
     REGISTERS = (
         Register("PIN", 0, width=8, on_read="_read_pin", on_write="_write_pin", fields=_bits("PIN", "w")),

@@ -68,6 +68,11 @@ class Timer0(AvrTimer):
         if cs in (6, 7):
             raise UnsupportedConfiguration(self.name, "TCCR0B", "CS0", cs,
                                            "(external clock on pin T0) is not modelled")
+        if (a >> 4) & 3 == 1 and self.MODES[mode][0] in ("fast", "pc"):
+            # COM0B = 01 in the PWM modes is "Reserved" (datasheet, TC0 compare output mode tables
+            # for fast PWM and phase correct PWM), unlike COM0A = 01 (toggle with WGM02 = 1)
+            raise UnsupportedConfiguration(self.name, "TCCR0A", "COM0B", 1,
+                                           "(reserved in the PWM modes) is not supported")
         self._configure(mode, cs, {"A": (a >> 6) & 3, "B": (a >> 4) & 3})
         foc = [ch for ch, bit in (("A", 0x80), ("B", 0x40)) if self.value["TCCR0B"] & bit]
         if foc:

@@ -105,6 +105,7 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
     """Event-driven engine shared by Timer0 and Timer1.  Subclasses give registers and names."""
 
     BUS_WIDTH = 1
+    ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
     MAX = 0xFFFF
     MODES = MODES16
     TIFR = TIMSK = ""
@@ -139,6 +140,7 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
         self._kj, self._qj, self._L, self._exu = 0, 0, self.MAX + 1, True
         self._ks = 0            # flags are known for every clock <= _ks
         self._kblock = -1       # clock whose compare matches are blocked by a TCNT write
+        self._block_start = False   # a TCNT write while stopped: the first clock after the start
         self._ev = None
         self._in_clock = False      # inside _on_clock: an ISR entry clearing a flag need not plan
 
@@ -173,15 +175,25 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
         return q, 1
 
     def _derive(self):
-        """Place the anchor on the cycle: the join clock _kj and its phase _qj (excursion before)."""
+        """Place the anchor on the cycle: the join clock _kj and its phase _qj (excursion before).
+
+        A counter written equal to a TOP held in OCRnA or ICR1 starts an excursion: the write
+        blocks the compare matches of the next timer clock, TOP's among them, so "the Compare
+        Match for the TOP will be ignored and the counter will continue to 0xFFFF" (ATmega328P
+        datasheet, TC1 "Using the Output Compare Unit", for the PWM modes with variable TOP; in
+        CTC, whose TOP is the same compare, we take the same mechanism to hold)."""
         c, d, T, M = self._c0, self._d0, self._top, self.MAX
         self._kj, self._qj, self._exu = self._k0, 0, True
+        blocked = c == T and self._kblock == self._k0 + 1 and self._topsrc in ("A", "I") and c < M
         if self._dual:
             if self._run and T == 0:
-                raise UnsupportedConfiguration(self.name, self._topname(), None, 0,
-                                               "= 0 as TOP of a dual-slope mode is not modelled")
+                held = self._buf["A"] if self._topsrc == "A" else 0
+                raise UnsupportedConfiguration(
+                    self.name, self._topname(), None, 0, "as TOP of a dual-slope mode is not modelled"
+                    + (f" (the {held} written to it waits in the double buffer for an update point; "
+                       "write it before selecting the mode, as the buffer then passes it through)" if held else ""))
             self._L = 2 * T
-            if c <= T and not (c == T and d < 0 and c > 0):
+            if c <= T and not (c == T and d < 0 and c > 0) and not (blocked and d > 0):
                 self._qj = c if (d > 0 or c == 0) else 2 * T - c
             elif d > 0:
                 self._kj = self._k0 + M + 1 - c
@@ -190,7 +202,7 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
                 self._kj, self._qj = self._k0 + c - T + 1, (T + 1) % self._L
         else:
             self._L = T + 1
-            if c <= T:
+            if c <= T and not blocked:
                 self._qj = c
             else:
                 self._kj = self._k0 + M + 1 - c
@@ -481,13 +493,20 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
             self._act[ch] = com_behaviour(self._kind, self._topsrc, ch, coms[ch])
         self._top = self._top_value()
         was_run = self._run
+        # a TCNT write blocks the compare matches of the next timer clock, "even when the timer is
+        # stopped" (datasheet, "Compare Match Blocking by TCNTn Write"): still due, it moves to the
+        # first clock of a new prescaler or of a restart
+        pending = self._block_start or (was_run and self._kblock == self._k0 + 1)
         if cs:
             N = CS_DIV[cs]
             if not was_run or N != self._N:
                 self._N, self._run = N, True
                 self._k0 = self._ks = self._clock_now()
+                self._kblock = self._k0 + 1 if pending else -1
+                self._block_start = False
         else:
             self._run = False
+            self._block_start, self._kblock = pending, -1
         self._cs = cs
         self._derive()
         for ch in self.CHANNELS:
@@ -524,6 +543,8 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
             self._d0 = 1
         if self._run:
             self._kblock = self._k0 + 1
+        else:           # blocks the first clock after the start (_configure)
+            self._block_start = True
         self._derive()
         self._plan(self._clock_now())
 
@@ -531,6 +552,10 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
         v &= self.MAX
         if isinstance(self._topsrc, int) and self._kind != "normal":
             v &= self._topsrc        # fixed-TOP PWM modes mask the high bits
+        if v == 0 and ch == "A" and self._topsrc == "A" and self._dual:
+            # it would become TOP at the next update point and be refused there, mid-run
+            raise UnsupportedConfiguration(self.name, "OCR1A" if self.MAX > 0xFF else "OCR0A", None, 0,
+                                           "as TOP of a dual-slope mode is not modelled")
         self._reanchor()
         self._buf[ch] = v
         if self._upd is None:
@@ -541,9 +566,14 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
 
     def _set_icr(self, v):
         self._reanchor()
-        self._icr = v & self.MAX
+        old, self._icr = self._icr, v & self.MAX
         if self._topsrc == "I":
-            self._retop()
+            try:
+                self._retop()
+            except UnsupportedConfiguration:    # refused: the timer goes on as before the write
+                self._icr = old
+                self._retop()
+                raise
 
     def _force(self, chans):
         """FOCnx: a forced compare match in non-PWM modes (no flag, no counter clear)."""
