@@ -125,7 +125,8 @@ def _build(args, scenario, log_target):
     if log_target is not None:
         out = sys.stdout if log_target == "-" else log_target
         try:
-            sim._traces.append(RegisterLog(sim, out, filter=args.register_log_filter, startup=startup))
+            sim.register_log = RegisterLog(sim, out, filter=args.register_log_filter, startup=startup)
+            sim._traces.append(sim.register_log)
         except BaseException:
             sim.discard()
             raise
@@ -200,7 +201,7 @@ def cmd_run(args) -> int:
     from .progress import run_with_progress
     from .scenario import load_scenario
     _check_run_args(args)
-    scenario = load_scenario(args.scenario) if args.scenario else None
+    scenario = load_scenario(args.scenario, args.duration) if args.scenario else None
     if scenario is not None:
         if args.duration is not None:
             scenario.duration = args.duration         # end-of-run checks and reports follow the run
@@ -324,7 +325,10 @@ def cmd_run(args) -> int:
         if args.summary:
             print(f"summary written to {args.summary}")
         if getattr(args, "register_log", None) not in (None, "-"):
-            print(f"register log written to {args.register_log}")
+            logged = getattr(getattr(sim, "register_log", None), "lines", None)
+            empty = (f" (no access: the filter {args.register_log_filter} names registers this run "
+                     "never touched)" if logged == 0 and args.register_log_filter else "")
+            print(f"register log written to {args.register_log}{empty}")
     failed = []
     if scenario is not None and scenario.failed:
         failed.append("a scenario expectation failed")

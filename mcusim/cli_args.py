@@ -163,7 +163,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--register-log", metavar="FILE", help="every firmware register access as JSON lines "
                    "('-' for stdout)")
     r.add_argument("--register-log-filter", metavar="NAMES", help="with --register-log: only these "
-                   "peripherals or registers: TIM3, TIM3.CCR1, GPIO*, mcm1.TWI (comma-separated)")
+                   "peripherals or registers: TIM1, TIM1.CCR1, GPIO*, mcm1.TWI (comma-separated)")
     r.add_argument("--summary", metavar="FILE", help="write the summary as JSON")
     r.add_argument("--mavlink", metavar="LINK", help="connect the firmware's MAVLink port to the host: pty "
                    "(prints its path), udpout:HOST:PORT or udpin:HOST:PORT; the profile's demo command is not "
@@ -174,7 +174,7 @@ def _parser() -> argparse.ArgumentParser:
                        epilog=EXAMPLES_TRACE, formatter_class=argparse.RawDescriptionHelpFormatter)
     _common_arguments(t, "1ms", "")
     t.add_argument("--filter", dest="register_log_filter", metavar="NAMES",
-                   help="only these peripherals or registers: TIM3, TIM3.CCR1, GPIO* (comma-separated)")
+                   help="only these peripherals or registers: TIM1, TIM1.CCR1, GPIO* (comma-separated)")
     t.set_defaults(scenario=None)
     b = sub.add_parser("bench", help="real-time factor of a fixed scenario", epilog=EXAMPLES_BENCH,
                        formatter_class=argparse.RawDescriptionHelpFormatter)

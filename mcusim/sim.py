@@ -135,9 +135,9 @@ class Simulation:
     def _ticks_of(self, arg: str, value) -> int:
         """``run(seconds=...)`` or ``run(until=...)`` in base ticks, rounded to the nearest one; a
         positive time shorter than half a tick (which would round to no time at all) is refused."""
-        if isinstance(value, bool):
+        if isinstance(value, bool) or (isinstance(value, str) and _bare_number(value)):
             raise McusimError(f"run({arg}={value!r}): expected a number of seconds or a duration with a "
-                              "unit (\"2ms\")")
+                              "unit (\"2ms\"), as the command line and scenarios take it")
         ticks = self.timebase.ticks(value, rounding=True)
         if ticks == 0 and parse_duration(value) > 0:
             raise McusimError(f"run({arg}={value!r}): shorter than half a base tick "
@@ -280,6 +280,14 @@ class Simulation:
             if hasattr(part, "summary_entries"):
                 out.update(part.summary_entries())
         return out
+
+
+def _bare_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def load(board: str, firmware=True, overrides: dict | None = None, **kw) -> Simulation:

@@ -125,6 +125,21 @@ def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, k
     return ns
 
 
+def _check_owned_loads(members: dict, member_sets: dict) -> None:
+    """A ``--set`` of a wheel motor's load_torque or load_inertia, which the rover body owns and
+    sets from the vehicle's motion (it would be overwritten before the first step)."""
+    for name, ns in members.items():
+        for key in member_sets[name]:
+            part, _, param = key.rpartition(".")
+            motor = ns["parts"].get(part)
+            owner = getattr(motor, "load_owner", None)
+            if owner is not None and param in getattr(motor, "_OWNED", ()):
+                raise ConfigError(f"--set {name}.{key}: this wheel's load comes from "
+                                  f"{getattr(owner, 'name', owner)} (the rover body sets it from the "
+                                  "vehicle's motion at every step); change the body's parameters (mass, "
+                                  "crr, mu_turn ...) instead")
+
+
 def _check_unique_params(members: dict, where: str) -> None:
     """Firmware parameters declared ``unique`` (a bus address) must differ between the boards,
     else two slaves answer one address: a configuration error, found before the run."""
@@ -333,6 +348,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                 raise exc from None
         _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
+        _check_owned_loads(members, member_sets)
     except Exception:
         close_firmware_tasks(members)    # firmware that will never run: end its coroutines quietly
         raise

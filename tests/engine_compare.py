@@ -119,8 +119,14 @@ def real_mismatch(a, b):
 def _pose_scale(d: dict) -> float:
     """One scale for a pose's x, y and yaw: yaw comes from differences of wheel travels, so its
     rounding is relative to the distance travelled, not to yaw itself (a straight run's yaw is a
-    rounding residue of ~1e-19 rad where the engines' wheel angles differ in the last bit)."""
-    return max([abs(d[k]) for k in ("x", "y") if isinstance(d.get(k), (int, float))] + [1e-12])
+    rounding residue of ~1e-19 rad where the engines' wheel angles differ in the last bit); and a
+    turn in place leaves x and y as residues of wheel travels of about |yaw|·track/2 each (found:
+    x = -3e-23 m against -3e-20 m after 0.5 rad/s), so |yaw| times 1 m, more than any shipped
+    rover's track, counts as a length too."""
+    vals = [abs(d[k]) for k in ("x", "y") if isinstance(d.get(k), (int, float))]
+    if isinstance(d.get("yaw"), (int, float)):
+        vals.append(abs(d["yaw"]) * 1.0)
+    return max(vals + [1e-12])
 
 
 def _compare_values(where: str, a, b, problems: list, scale: float = 1e-12) -> None:

@@ -18,6 +18,7 @@ def bare():
 
 @pytest.mark.parametrize("kw, words", [
     ({"seconds": True}, "expected a number of seconds"),
+    ({"seconds": "0.01"}, "as the command line and scenarios take it"),     # a bare number as text
     ({"until": False}, "expected a number of seconds"),
     ({"seconds": 1e300}, "beyond the last tick"),
     ({"seconds": 1e-12}, "shorter than half a base tick"),

@@ -191,3 +191,16 @@ def test_bench_engine_both_reports_both_factors_and_their_ratio(tmp_path, capsys
     assert r["engine"] == "both" and r["reference_realtime_factor"] > 0 and r["realtime_factor"] > 0
     assert abs(r["speedup"] - r["realtime_factor"] / r["reference_realtime_factor"]) < 1e-12
     assert "speedup" in capsys.readouterr().out
+
+
+def test_a_register_log_whose_filter_matched_no_access_says_so(tmp_path, capsys):
+    """TIM3 is an encoder timer on the nucleo-f746: its CCR1 is never accessed, and an empty log
+    with exit 0 looked like a broken option. The filter is valid (a misspelt one is refused)."""
+    log = tmp_path / "r.jsonl"
+    assert main(["run", "nucleo-f746", "--duration", "5ms", "-q", "--register-log", str(log),
+                 "--register-log-filter", "TIM3.CCR1"]) == 0
+    assert "no access: the filter TIM3.CCR1 names registers this run never touched" in capsys.readouterr().out
+    assert log.read_text() == ""
+    assert main(["run", "nucleo-f746", "--duration", "5ms", "-q", "--register-log", str(log),
+                 "--register-log-filter", "TIM1.CCR1"]) == 0
+    assert "no access" not in capsys.readouterr().out and log.read_text()

@@ -208,3 +208,39 @@ def test_an_unknown_firmware_key_in_a_members_own_set_is_named_at_its_line(tmp_p
     path = _edited(tmp_path, "rover-diff", 'set = { "firmware.layout"', 'set = { "firmware.nope" = 1, "firmware.layout"')
     msg = _one_error(capsys, ["run", path, "--duration", "1ms"])
     assert f"b.toml:{_line_of(path, 'firmware.nope')}: member rcm: set: firmware.nope: unknown firmware parameter" in msg
+
+
+# --- a rover wheel's load belongs to the body -------------------------------------------------------
+@pytest.mark.parametrize("key", ["mcm1.motor.load_torque=50", "mcm2.motor.load_inertia=5"])
+def test_a_set_of_a_rover_wheels_load_is_refused_since_the_body_owns_it(capsys, key):
+    """The rover body sets each wheel motor's load torque and inertia from the vehicle's motion
+    at every step: a --set of them was overwritten before the first step, silently."""
+    msg = _one_error(capsys, ["run", "elementall", "--set", key, "--duration", "1ms"])
+    assert f"--set {key.split('=')[0]}: this wheel's load comes from body" in msg
+
+
+def test_the_api_and_a_scenario_torque_on_a_rover_wheel_are_refused_but_a_stall_fault_works(tmp_path, capsys):
+    from mcusim.errors import ConfigError
+    sim = mcusim.load("elementall")
+    with pytest.raises(ConfigError, match="load comes from body"):
+        sim.part("mcm1.motor").apply_load_torque(40.0)
+    sim.run(seconds="2ms")                   # the body goes on setting it
+    assert sim.part("mcm1.motor").params.load_torque == sim.part("body").wheel_loads[0]
+    sim.close()
+    sc = tmp_path / "s.toml"
+    sc.write_text('[scenario]\nboard = "elementall"\nduration = "20ms"\n[[at]]\ntime = "10ms"\n'
+                  'torque = { motor = "mcm1.motor", nm = 40.0 }\n')
+    assert "s.toml:6:" in _one_error(capsys, ["run", "elementall", "--scenario", str(sc)])
+    sc.write_text('[scenario]\nboard = "elementall"\nduration = "20ms"\n[[at]]\ntime = "10ms"\n'
+                  'fault = { kind = "stall", motor = "mcm1.motor" }\n')
+    assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 0
+
+
+def test_a_motor_is_the_wheel_of_one_body_only():
+    from mcusim.errors import ConfigError
+    from mcusim.plant.rover import RoverBody
+    sim = mcusim.load("elementall")
+    wheels = [sim.part(f"mcm{k}.motor") for k in (1, 2, 3, 4)]
+    with pytest.raises(ConfigError, match="is a wheel of body already"):
+        RoverBody(sim.kernel, name="body2", motors=wheels, sides="LRLR")
+    sim.close()

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from mcusim.cli import main
 from mcusim.errors import ConfigError
 from mcusim.scenario import load_scenario, run_scenario, scenario_names
 
@@ -292,3 +293,27 @@ def test_a_scenario_for_a_board_that_does_not_exist_says_so(tmp_path):
     assert "s.toml:2: the scenario is meant for board 'nucleo-f999', not 'nucleo-f746'" in msg
     assert "no shipped board is called 'nucleo-f999'" in msg and "nucleo-f746" in msg
     assert "no shipped board" not in error_of(load_scenario(write(tmp_path, HEAD, "t.toml")).check_board, "pro-mini")
+
+
+def test_a_stall_fault_on_the_promini_ends_in_the_driver_fault_as_docs_scenarios_says(tmp_path):
+    """docs/scenarios.md: a jammed pro-mini motor's current trips the BTS7960's current sense (the
+    sketch's driver fault) within tens of milliseconds, long before its 500 ms stall timer."""
+    sc = tmp_path / "jam.toml"
+    sc.write_text('[scenario]\nboard = "pro-mini"\nduration = "600ms"\n[[at]]\ntime = "0s"\n'
+                  'publish = { velocity = 10 }\n[[at]]\ntime = "500ms"\n'
+                  'fault = { kind = "stall", motor = "motor" }\n'
+                  '[[expect]]\nsummary = "firmware.faults"\ncontains = "driver"\n')
+    assert main(["run", "pro-mini", "--scenario", str(sc), "-q"]) == 0
+
+
+def test_a_longer_duration_given_on_the_command_line_admits_the_files_later_times(tmp_path, capsys):
+    """docs/scenarios.md: --duration shortens or lengthens the run. An expectation after the
+    file's own end is refused as a mistake in the file, unless the run is given a duration that
+    reaches it; a shorter one leaves later expectations not reached (exit 1)."""
+    sc = tmp_path / "late.toml"
+    sc.write_text('[scenario]\nboard = "nucleo-f746"\nduration = "100ms"\n'
+                  '[[expect]]\ntime = "200ms"\npart = "motor1"\nattr = "output_angle"\napprox = 0.0\ntol = 1.0\n')
+    assert main(["run", "nucleo-f746", "--scenario", str(sc), "-q"]) == 2
+    assert "after the end of the run (duration 100ms)" in capsys.readouterr().err
+    assert main(["run", "nucleo-f746", "--scenario", str(sc), "--duration", "300ms", "-q"]) == 0
+    assert "PASS" in capsys.readouterr().out

@@ -222,10 +222,33 @@ class DcMotor(PeriodicDrive):
         # every parameter a segment, a piece flow or a guard depends on besides R (keys of the caches)
         self._pkey = (p.L, p.K, self._J, p.b, p.tau_c, p.tau_s, self._tlp, self._tln)
 
+    #: the part that sets this motor's load (a rover body, every step), or None; nobody else may
+    load_owner = None
+    _OWNED = ("load_torque", "load_inertia")
+
     def set_params(self, **overrides) -> None:
-        """Change parameters at run time (advances to now first). Unknown names raise ConfigError."""
+        """Change parameters at run time (advances to now first). Unknown names raise ConfigError,
+        and so does the load of a motor whose load a part owns (``load_owner``: a rover body
+        would overwrite it at its next step)."""
+        owned = [k for k in self._OWNED if k in overrides]
+        if owned and self.load_owner is not None:
+            who = getattr(self.load_owner, "name", self.load_owner)
+            raise ConfigError(f"{self.name}.{owned[0]}: this wheel's load comes from {who} (the rover body "
+                              "sets it from the vehicle's motion at every step); change the body's parameters "
+                              "(mass, crr, mu_turn ...) instead")
+        self._apply_params(overrides)
+
+    def _apply_params(self, overrides) -> None:
         new = MotorParams.from_mapping(overrides, base=self.params)
         self._change(lambda: self._set_params(new))
+
+    def set_load_by(self, owner, **loads) -> None:
+        """The load (``load_torque``, ``load_inertia``) set by the part that owns it, which
+        claims the motor first (``load_owner``)."""
+        if owner is not self.load_owner or set(loads) - set(self._OWNED):
+            raise ConfigError(f"{self.name}: set_load_by from {getattr(owner, 'name', owner)}, which does not "
+                              f"own its load, or with other keys than {', '.join(self._OWNED)}")
+        self._apply_params(loads)
 
     def apply_load_torque(self, tau_out: float) -> None:
         """Set the output-shaft load torque (N·m, against positive rotation) from now on."""

@@ -36,8 +36,8 @@ Model (a documented approximation; values without a source are [I]):
    wheel's rotation through ``tanh(r·ω_i/v_ε)`` with v_ε = ``speed_eps`` = 0.01 m/s.
 5. **Coupling in time.** The load torques are recomputed every ``step`` (1 ms, a ``PRIO_PLANT``
    kernel event) from the wheel speeds at that instant and held constant in between (applied with
-   :meth:`DcMotor.apply_load_torque`, so each motor stays exact between events with a constant
-   load). The smooth signs make the held loads behave like a damper near zero speed; with the
+   :meth:`DcMotor.set_load_by`: the body owns the load, and anyone else's ``set_params`` of it is
+   refused), so each motor stays exact between events with a constant load). The smooth signs make the held loads behave like a damper near zero speed; with the
    vehicle share (m/n)·r² as the wheel inertia (the rotor and the wheel disc only add to it) the
    damper's time constant is v_ε/(crr·g) = 34 ms (rolling) and χ·track²·ω_ε/(mu_turn·g·wheelbase)
    = 10 ms (turning) with the defaults (times η when the load drives through the gearbox), against
@@ -190,12 +190,21 @@ class RoverBody:
             raise ConfigError(f"{who}: step {self.step_s * 1e3:g} ms is too long for the smooth-sign "
                               f"time constants {tau_roll * 1e3:.3g} ms (rolling) / {tau_yaw * 1e3:.3g} ms "
                               f"(turning): shorten step or raise speed_eps / yaw_rate_eps")
+        for mot in motors:      # the body sets their loads: a second setter would be overwritten
+            owner = getattr(mot, "load_owner", None)
+            if owner is not None and owner is not self:
+                raise ConfigError(f"{who}: motor {getattr(mot, 'name', mot)!r} is a wheel of "
+                                  f"{getattr(owner, 'name', owner)} already")
+        for mot in motors:
+            if hasattr(mot, "set_load_by"):
+                mot.load_owner = self
+        self._setters = [self._setter(mot) for mot in motors]
         self.wheel_inertia = (m / n) * r * r + 0.5 * self.wheel_mass * r * r
         self._iL = [k for k, s in enumerate(sides) if s == "L"]
         self._iR = [k for k, s in enumerate(sides) if s == "R"]
         self._sgn = [1.0 if s == "R" else -1.0 for s in sides]
-        for mot in motors:
-            mot.set_params(load_inertia=self.wheel_inertia)
+        for set_load in self._setters:
+            set_load(load_inertia=self.wheel_inertia)
 
         self._x, self._y, self._psi = float(x), float(y), float(yaw)
         self.distance = 0.0
@@ -204,6 +213,14 @@ class RoverBody:
         self.wheel_loads = [0.0] * n
         self._apply_loads(self._speeds())
         self._ev = kernel.after(self.step_ticks, self._step, prio=PRIO_PLANT)
+
+    def _setter(self, mot):
+        """How the body sets a wheel's load: as its owner (a DcMotor), else through set_params."""
+        by = getattr(mot, "set_load_by", None)
+        if by is not None:
+            return lambda **loads: by(self, **loads)
+        return lambda **loads: (mot.apply_load_torque(loads["load_torque"]) if "load_torque" in loads
+                                else mot.set_params(**loads))
 
     # ---- wheel readings ----------------------------------------------------------------------------
     def _angles(self):
@@ -246,7 +263,7 @@ class RoverBody:
                 tau_m = 0.0                    # no −0.0
             self.wheel_loads[k] = tau_m
             if tau_m != mot.params.load_torque:
-                mot.apply_load_torque(tau_m)
+                self._setters[k](load_torque=tau_m)
 
     # ---- observers ---------------------------------------------------------------------------------
     @property

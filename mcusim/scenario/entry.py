@@ -33,9 +33,10 @@ def _resolve(path) -> Path:
     return shipped if shipped.exists() else p
 
 
-def load_scenario(path) -> Scenario:
+def load_scenario(path, duration=None) -> Scenario:
     """Parse and check a scenario file (a path, or the name of one in ``scenarios/``). Any
-    mistake raises ConfigError ``<file>:<line>: <problem>``."""
+    mistake raises ConfigError ``<file>:<line>: <problem>``. ``duration``: the run's, where it is
+    given instead of the file's (``--duration``): times up to the later end are the file's own."""
     p = _resolve(path)
     try:
         data = read_input(p, "scenario", 4 << 20)
@@ -49,7 +50,7 @@ def load_scenario(path) -> Scenario:
         raise ConfigError(f"cannot read scenario {str(path)!r}: {exc.strerror}"
                           + (f" (shipped scenarios: {known})" if known else "")) from None
     from ..schema import parse_toml
-    return Scenario(p, parse_toml(text, p), _Lines(text))
+    return Scenario(p, parse_toml(text, p), _Lines(text), run_for=duration)
 
 
 def run_scenario(path, board: str | None = None, *, duration=None, overrides: dict | None = None,

@@ -78,9 +78,9 @@ def parse_expect(sc, i: int, e: dict) -> _Expect:
     sc._unknown("expect", i, e, EXPECT_KEYS)
     line = sc._line("expect", i)
     t = sc._value("expect", i, ("time",), e["time"], "duration") if "time" in e else None
-    if t is not None and t > sc._duration:
+    if t is not None and t > sc._horizon:
         raise sc._err(sc._line("expect", i, "time"), f"{where}: time {_fmt_time(t)} is after the end "
-                      f"of the run (duration {_fmt_time(sc._duration)}); leave time out for the end")
+                      f"of the run (duration {_fmt_time(sc._horizon)}); leave time out for the end")
     sources = [k for k in EXPECT_SOURCES if k in e]
     if len(sources) != 1:
         raise sc._err(sc._line("expect", i, *sources[1:2]), f"{where}: give exactly one of "

@@ -140,14 +140,14 @@ class MavlinkExpect:
         self.index, self.line = i, sc._line("expect", i)
         self.cls = message_class(sc, e["mavlink"], sc._line("expect", i, "mavlink"), where)
         self.time = sc._value("expect", i, ("time",), e["time"], "duration") if "time" in e else None
-        if self.time is not None and self.time > sc._duration:
+        if self.time is not None and self.time > sc._horizon:
             raise sc._err(sc._line("expect", i, "time"), f"{where}: time {_fmt_time(self.time)} is after the "
-                          f"end of the run (duration {_fmt_time(sc._duration)}); leave time out for the end")
+                          f"end of the run (duration {_fmt_time(sc._horizon)}); leave time out for the end")
         self.after = sc._value("expect", i, ("after",), e["after"], "duration") if "after" in e else Fraction(0)
-        if self.after > (sc._duration if self.time is None else self.time):
+        if self.after > (sc._horizon if self.time is None else self.time):
             raise sc._err(sc._line("expect", i, "after"), f"{where}: after {_fmt_time(self.after)} is later than "
                           + (f"time {_fmt_time(self.time)}" if self.time is not None else
-                             f"the end of the run (duration {_fmt_time(sc._duration)})"))
+                             f"the end of the run (duration {_fmt_time(sc._horizon)})"))
         spec = e.get("fields", {})
         if not isinstance(spec, dict):
             raise sc._err(sc._line("expect", i, "fields"), f"{where}: fields = {{ <field> = value, ... }}")

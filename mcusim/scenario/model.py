@@ -48,10 +48,11 @@ class Scenario(Checker):
     ``report`` (the ``[report]`` measurements), ``log`` ((tick, text) of every action done).
     """
 
-    def __init__(self, path, data: dict, lines: _Lines):
+    def __init__(self, path, data: dict, lines: _Lines, run_for=None):
         self.path = str(path)
         self.name = Path(path).stem
         self._lines = lines
+        self._run_for = None if run_for is None else parse_duration(run_for)   # --duration, if given
         self._check(data)
         self._sim = None
         self.log: list[tuple[int, str]] = []
@@ -77,6 +78,9 @@ class Scenario(Checker):
         if self._duration <= 0:
             raise self._err(self._line("scenario", None, "duration"), "[scenario]: duration must be positive")
         self.file_duration = self._duration
+        # times in the file may reach the end of the run it is given: its own duration, or a longer
+        # --duration (a shorter one leaves the later expectations not reached, as documented)
+        self._horizon = max(self._duration, self._run_for or 0)
 
         self.overrides: dict = {}
         self._set_lines: dict = {}
@@ -108,10 +112,10 @@ class Scenario(Checker):
             if name in rep:
                 self.report_spec[name] = self._fields("report", None, (name,), rep[name], fields)
         t0 = self.report_spec.get("follow", {}).get("from")
-        if t0 is not None and t0 > self._duration:     # as [[at]] and [[expect]] times are checked
+        if t0 is not None and t0 > self._horizon:     # as [[at]] and [[expect]] times are checked
             raise self._err(self._line("report", None, "follow", "from"), f"[report] follow: from "
                             f"{_fmt_time(t0)} is after the end of the run (duration "
-                            f"{_fmt_time(self._duration)}): the report would have no sample")
+                            f"{_fmt_time(self._horizon)}): the report would have no sample")
         for e in self.expects:
             if isinstance(e, _Expect) and e.source[0] == "report":
                 check_report_path(self, e)
@@ -144,9 +148,9 @@ class Scenario(Checker):
         if "time" not in entry:
             raise self._err(self._line("at", i), f"{where}: missing time = \"...\"")
         t = self._value("at", i, ("time",), entry["time"], "duration")
-        if t > self._duration:
+        if t > self._horizon:
             raise self._err(self._line("at", i, "time"), f"{where}: time {_fmt_time(t)} is after the end "
-                            f"of the run (duration {_fmt_time(self._duration)})")
+                            f"of the run (duration {_fmt_time(self._horizon)})")
         actions = [(name, ACTION_KINDS[name].parse(self, i, name, spec), self._line("at", i, name))
                    for name, spec in entry.items() if name != "time"]
         if not actions:
