@@ -479,6 +479,10 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                            index) from None
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
+    if avr:     # the chip's other I/O registers: an access names them (periph/avr/unmodelled.py)
+        from mcusim.periph.avr.unmodelled import STORAGE, UNITS, AvrUnmodelled
+        free = {a for _, a, *_ in UNITS + STORAGE if bus.peripheral_at(a) is None}
+        bus.attach_registers(0, AvrUnmodelled("ATmega328P", free))
     _check_pins_have_ports(profile, where, mcu)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
     for pin_name, level in profile.get("pull", {}).items():

@@ -167,7 +167,8 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=Param(
         0, min=0, max=495, required=True, doc="NVIC interrupt line: 24 USART0, 25 UART1, 26 USART2, 27 USART3")),
          "LPC4337 USART", needs=("base", "clock")),
-    Kind("peripheral", "avr-cpu", "mcusim.periph.avr.cpu:AvrCpuRegs", {}, "ATmega328P SREG, SP"),
+    Kind("peripheral", "avr-cpu", "mcusim.periph.avr.cpu:AvrCpuRegs", {},
+         "ATmega328P SREG (its I flag is the global interrupt enable)"),
     Kind("peripheral", "avr-port", "mcusim.periph.avr.port:AvrPort", _P(
         port=Param("B", choices=("B", "C", "D")), pins=Param(8, min=1, max=8, doc="pins bonded out")),
         "ATmega328P I/O port (PINx, DDRx, PORTx)", needs=("base",)),

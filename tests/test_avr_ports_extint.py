@@ -162,3 +162,23 @@ def test_wait_for_interrupt_resumes_a_polling_loop_after_each_isr(m):
         m.kernel.at(t, m.pin("PD2").drive, t == 500)
     m.kernel.run_until(2000)
     assert passes == [0, 500 + 4 + 20, 900 + 4 + 20]
+
+
+def test_the_chips_unmodelled_io_registers_are_named_when_written_and_read_their_reset_value():
+    """ATmega328P registers of units without a model (Timer2, USART0, PRR, ...) are declared at
+    their data-space addresses (datasheet "Register Summary"): a read gives the reset value, a
+    write of anything else is refused naming the register (it was a bus fault at a bare
+    address); GPIOR0-2 are plain storage."""
+    import mcusim
+    from mcusim.errors import UnsupportedConfiguration
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    assert m.read8(0xC0) == 0x20 and m.read8(0xC2) == 0x06     # UCSR0A (UDRE0), UCSR0C (8N1)
+    assert m.read8(0x5D) == 0xFF and m.read8(0x5E) == 0x08     # SP = RAMEND 0x08FF
+    m.write8(0x3E, 0xA5)
+    assert m.read8(0x3E) == 0xA5                                 # GPIOR0
+    m.write8(0x64, 0x00)                                         # PRR at its reset value: accepted
+    for addr, name in ((0x64, "PRR"), (0xB1, "TCCR2B"), (0xC1, "UCSR0B")):
+        with pytest.raises(UnsupportedConfiguration, match=rf"ATmega328P\.{name} = 0x1 is not supported"):
+            m.write8(addr, 1)
+    sim.close()
