@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import importlib.resources
 import inspect
+import re
 from fractions import Fraction
 from pathlib import Path
 
@@ -92,12 +93,15 @@ def _check_pins_have_ports(profile, where, mcu) -> None:
     """Every pin a peripheral named (an external interrupt's ``pins``) is a pin of a declared port:
     a peripheral creates the pins it names, so a misspelt one (``PD9``) would be a pin of its own
     that nothing drives, and the interrupt would never fire."""
-    owned = set()
+    owned, families = set(), set()
     for p in mcu.periph.values():
         for item in getattr(p, "pins", None) or ():
-            owned.update(id(n) for n in (item if isinstance(item, list) else [item]))
+            for n in (item if isinstance(item, list) else [item]):
+                owned.add(id(n))
+                families.add(_pin_family(n.name))
     for name, net in mcu.pins.items():
-        if id(net) in owned:
+        # a pin of its own that a peripheral made (a plugin's "BUZZ") is not a port's mistyped pin
+        if id(net) in owned or _pin_family(name) not in families:
             continue
         for index, spec in enumerate(profile.get("peripheral", [])):
             for key, value in spec.items():
@@ -109,7 +113,14 @@ def _check_pins_have_ports(profile, where, mcu) -> None:
 
 
 def _port_names(mcu):
-    return [n for n, p in mcu.periph.items() if hasattr(p, "connect_override")]
+    return [n for n, p in mcu.periph.items() if getattr(p, "pins", None)]
+
+
+def _pin_family(name: str) -> str:
+    """The naming family of a port pin: its leading letters less the port letter ("PD9" -> "P",
+    "GPIO3_3" -> "GPI"), the same for every pin of a port scheme."""
+    letters = re.match(r"[A-Za-z]*", name).group()
+    return letters[:-1] if len(letters) > 1 else letters
 
 
 def parse_value(text: str):
@@ -219,8 +230,9 @@ def _resolve_peripheral_refs(spec, mcu, kernel, buses, where, kind=None):
             net = mcu.analog.setdefault(net_name, AnalogNet(net_name))
             nets[int(ch)] = net
         out["inputs"] = nets
-    if "bus" in spec or (kind is not None and "bus" in kind.params):
-        name = spec["bus"] if "bus" in spec else kind.params["bus"].default
+    default = getattr(kind.params.get("bus"), "default", None) if kind is not None else None
+    if "bus" in spec or isinstance(default, str):
+        name = spec.get("bus", default)
         if name not in buses:
             buses[name] = I2cBus(kernel, name)
         out["bus"] = buses[name]
@@ -344,7 +356,8 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
             args[term.lower()] = net
         missing = _missing_args(cls, 1, {"name", *args, *params})
         if missing:
-            raise _PartError(f"part {name} ({kind.name}): missing {missing} = ... (it has no default)",
+            raise _PartError(f"part {name} ({kind.name}): missing {missing} = ... (its constructor has no "
+                             "default)",
                              name, None, None, where)
         try:
             parts[name] = cls(kernel, name=name, **args, **params)
@@ -362,6 +375,23 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
         if part not in parts:
             raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
     return parts
+
+
+def _part_driving(profile, pin_name: str):
+    """The part terminal ("encoder.A") that [pins] wires to ``pin_name`` if the part drives it
+    (its kind's OUTPUTS), else None."""
+    target = profile.get("pins", {}).get(pin_name)
+    if not isinstance(target, str):
+        return None
+    part, _, term = target.partition(".")
+    spec = next((q for q in profile.get("part", []) if q.get("name") == part), None)
+    if spec is None:
+        return None
+    try:
+        kind = kinds.lookup("part", spec.get("kind"), "")
+    except ConfigError:
+        return None
+    return target if kind.outputs and term.upper() in kind.outputs else None
 
 
 def _missing_args(cls, positional: int, given: set) -> str | None:
@@ -453,7 +483,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         missing = _missing_args(cls, 2, set(kwargs))
         if missing:
             raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): missing {missing} = ... "
-                           "(it has no default)", "peripheral", index)
+                           "(its constructor has no default)", "peripheral", index)
         try:
             p = cls(spec["name"], mcu, **kwargs)
             mcu.periph[spec["name"]] = p
@@ -477,6 +507,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         except BUILD_ERRORS as exc:
             raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): {exc}", "peripheral",
                            index) from None
+        vecs = getattr(p, "vectors", None)     # as built: a model's own defaults too (Timer0's 14-16)
+        _check_irq_numbers({"name": spec["name"], "vector": list(vecs.values()) if isinstance(vecs, dict)
+                            else vecs}, limit, what, where)
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
     if avr:     # the chip's other I/O registers: an access names them (periph/avr/unmodelled.py)
@@ -502,6 +535,11 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                                f"{taken[pin_name]} already drives that pin (one output per pin)",
                                "peripheral", index, "outputs", out)
             taken[pin_name] = f"{spec['name']} output {out}"
+            driver = _part_driving(profile, pin_name)
+            if driver is not None:
+                raise _located(profile, where, f"peripheral {spec['name']}: outputs.{out} = {pin_name!r}: "
+                               f"[pins] has {driver} drive that pin (one output per pin)",
+                               "peripheral", index, "outputs", out)
             try:
                 net = mcu.pin(pin_name)
             except ConfigError as exc:
@@ -575,7 +613,8 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         kind = kinds.lookup("firmware", fw.get("kind"), f"{where}: [firmware]")
         cls = kind.load()
         family = getattr(cls, "CORE", None)
-        if family is not None and not core.get("kind", "").startswith(family):
+        if family is not None and not core.get("kind", "").startswith(
+                family if isinstance(family, str) else tuple(family)):
             raise ConfigError(f"{where}: firmware {kind.name} runs on a core of the {family} family; this "
                               f"board's [core] is {core.get('kind')!r}")
         params = {k: v for k, v in fw.items() if k != "kind"}

@@ -59,7 +59,8 @@ def read_input(path, what: str, limit: int = 16 << 20) -> bytes:
     import os
     import stat
     with open(path, "rb") as f:
-        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+        mode = os.fstat(f.fileno()).st_mode
+        if not (stat.S_ISREG(mode) or stat.S_ISFIFO(mode)):     # a pipe: <(...) in a shell
             raise ConfigError(f"{os.fspath(path)}: not a regular file; a {what} is a file")
         data = f.read(limit + 1)
     if len(data) > limit:

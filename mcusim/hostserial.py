@@ -90,13 +90,17 @@ class BufferEndpoint:
 
 
 def _as_bytes(data) -> bytes:
-    """Bytes given to ``feed``: bytes, bytearray, memoryview or a list of 0..255 (not an int, which
-    ``bytes()`` would take as a count of zero bytes, nor text, which has no one encoding)."""
-    if isinstance(data, (bytes, bytearray, memoryview)):
-        return bytes(data)
-    if isinstance(data, (list, tuple)) and all(isinstance(b, numbers.Integral) and not isinstance(b, bool)
-                                               and 0 <= b <= 255 for b in data):
-        return bytes(data)
+    """Bytes given to ``feed``: anything with the buffer protocol (bytes, bytearray, a numpy uint8
+    array, array('B')) or a list of 0..255; not an int, which ``bytes()`` would take as a count
+    of zero bytes, nor text, which has no one encoding."""
+    if isinstance(data, (list, tuple)):
+        if all(isinstance(b, numbers.Integral) and not isinstance(b, bool) and 0 <= b <= 255 for b in data):
+            return bytes(data)
+    elif not isinstance(data, (str, numbers.Number)) and data is not None:
+        try:
+            return memoryview(data).cast("B").tobytes()
+        except TypeError:
+            pass
     raise McusimError(f"feed({data!r:.60}): give bytes (b\"...\"), a bytearray or a list of ints 0..255")
 
 

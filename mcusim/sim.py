@@ -21,6 +21,7 @@ class Simulation:
     def __init__(self, board: str, firmware: bool = True, overrides: dict | None = None, strict: bool = False,
                  engine: str | None = DEFAULT_ENGINE):
         engine = check_engine(DEFAULT_ENGINE if engine is None else engine)
+        firmware = False if firmware is None else firmware
         if not isinstance(firmware, (bool, str, os.PathLike)):
             raise ConfigError(f"firmware={firmware!r}: expected True (the profile's firmware), False (none) "
                               "or the path of an ELF image")

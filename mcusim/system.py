@@ -125,19 +125,25 @@ def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, k
     return ns
 
 
-def _check_owned_loads(members: dict, member_sets: dict) -> None:
-    """A ``--set`` of a wheel motor's load_torque or load_inertia, which the rover body owns and
-    sets from the vehicle's motion (it would be overwritten before the first step)."""
-    for name, ns in members.items():
-        for key in member_sets[name]:
+def _check_owned_loads(members: dict, member_sets: dict, specs: list, profile, where: str) -> None:
+    """A wheel motor's load_torque or load_inertia given by ``--set`` or by a member's own ``set``
+    in the system file: the rover body owns them and sets them from the vehicle's motion (the
+    value would be overwritten before the first step)."""
+    why = ("this wheel's load comes from {} (the rover body sets it from the vehicle's motion at every "
+           "step); change the body's parameters (mass, crr, mu_turn ...) instead")
+    for index, m in enumerate(specs):
+        name = m["name"]
+        ns = members[name]
+        for key in list(member_sets[name]) + [k for k in m.get("set", {}) if k not in member_sets[name]]:
             part, _, param = key.rpartition(".")
             motor = ns["parts"].get(part)
             owner = getattr(motor, "load_owner", None)
-            if owner is not None and param in getattr(motor, "_OWNED", ()):
-                raise ConfigError(f"--set {name}.{key}: this wheel's load comes from "
-                                  f"{getattr(owner, 'name', owner)} (the rover body sets it from the "
-                                  "vehicle's motion at every step); change the body's parameters (mass, "
-                                  "crr, mu_turn ...) instead")
+            if owner is None or param not in getattr(motor, "_OWNED", ()):
+                continue
+            msg = why.format(getattr(owner, "name", owner))
+            if key in member_sets[name]:
+                raise ConfigError(f"--set {name}.{key}: {msg}")
+            raise _located(profile, where, f"member {name}: set: {key}: {msg}", "member", index, "set", key)
 
 
 def _check_unique_params(members: dict, where: str) -> None:
@@ -325,7 +331,11 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
             if member not in external or not part or not term:
                 raise ConfigError(f"{where}: [links] {source}: {target!r} is not member.part.TERMINAL")
             _check_link_target(profile, where, source, target, member_profiles[member][0], part, term)
-            external[member].setdefault(part, {})[term] = net
+            terms = external[member].setdefault(part, {})
+            if term in terms:
+                raise _located(profile, where, f"[links] {source}: {target!r} is driven by {terms[term].name} "
+                               "too; a terminal has one net", "links", None, source)
+            terms[term] = net
 
     buses: dict = {}
     members: dict = {}
@@ -348,7 +358,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                 raise exc from None
         _check_unique_params(members, where)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
-        _check_owned_loads(members, member_sets)
+        _check_owned_loads(members, member_sets, specs, profile, where)
     except Exception:
         close_firmware_tasks(members)    # firmware that will never run: end its coroutines quietly
         raise

@@ -107,3 +107,17 @@ def test_feed_takes_bytes_not_a_count_or_text(data):
     ep.feed([0x41, 0x42])               # a list of byte values is bytes
     ep.feed(bytearray(b"C"))
     sim.close()
+
+
+def test_feed_takes_any_byte_buffer_and_load_takes_none_for_no_firmware():
+    import array
+
+    import numpy as np
+    sim = mcusim.load("ciaa-edu")
+    ep = sim.connect_serial("USART2", "buffer")
+    ep.feed(np.array([1, 2, 3], dtype=np.uint8))
+    ep.feed(array.array("B", [4]))
+    sim.close()
+    sim = mcusim.load("nucleo-f746", firmware=None)
+    assert sim.firmware is None
+    sim.close()

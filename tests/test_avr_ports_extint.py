@@ -182,3 +182,24 @@ def test_the_chips_unmodelled_io_registers_are_named_when_written_and_read_their
         with pytest.raises(UnsupportedConfiguration, match=rf"ATmega328P\.{name} = 0x1 is not supported"):
             m.write8(addr, 1)
     sim.close()
+
+
+def test_mcusr_holds_the_reset_flags_cleared_by_writing_0_and_wdt_disable_is_accepted():
+    """MCUSR after a power-on reset holds PORF, and firmware clears the flags by writing 0
+    (datasheet, MCUSR); wdt_disable()'s timed sequence (WDCE|WDE, then 0) leaves the watchdog
+    off and is accepted, while enabling the watchdog (WDE without WDCE, or WDIE) is refused."""
+    import mcusim
+    from mcusim.errors import UnsupportedConfiguration
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    assert m.read8(0x54) == 0x01
+    m.write8(0x54, 0x0F)                 # writing 1 leaves a flag as it is
+    assert m.read8(0x54) == 0x01
+    m.write8(0x54, 0x00)
+    assert m.read8(0x54) == 0x00
+    m.write8(0x60, 0x18)
+    m.write8(0x60, 0x00)
+    for v in (0x08, 0x40):
+        with pytest.raises(UnsupportedConfiguration, match="WDTCSR"):
+            m.write8(0x60, v)
+    sim.close()

@@ -826,3 +826,35 @@ def test_sixteen_bit_api_access_to_an_avr_timer_register_is_two_byte_accesses_th
     with pytest.raises(McusimError, match="only 8-bit accesses"):
         m.write32(TCNT1, 1)
     sim.close()
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_refused_mode_change_leaves_the_timer_as_it_was(engine):
+    """Mode 10 (dual slope, TOP = ICR1) with ICR1 = 0 is refused at the TCCR1B write; the timer
+    keeps its mode, count and flags (the refused mode had been half applied: TCNT1 read 65436
+    and ICF1 came up)."""
+    rig = Rig(engine)
+    rig.w(TCCR1B, CS10)                        # mode 0 running
+    rig.run_clocks(100)
+    rig.w(TCCR1A, 0x02)                        # mode 2 (phase correct 9-bit) for now
+    rig.run_clocks(0)
+    with pytest.raises(UnsupportedConfiguration, match="ICR1 = 0x0 as TOP"):
+        rig.w(TCCR1B, WGM13 | CS10)             # mode 10
+    rig.w(TCCR1A, 0x00)                        # back to mode 0
+    assert rig.r(TCCR1B) == CS10 and rig.t1.counter == 100 and rig.r(TIFR1) & ICF == 0
+    rig.run_clocks(1000)
+    assert rig.t1.counter == 1100
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_switching_to_a_dual_slope_mode_with_ocr1a_0_in_the_buffer_is_refused_at_the_switch(engine):
+    """Mode 15 takes a buffered OCR1A = 0 (single slope); a switch to mode 11 would make it TOP
+    at the next update, refused there mid-run: it is refused at the switch."""
+    rig = Rig(engine)
+    rig.w16(OCR1A, 100)
+    rig.mode(15, CS10)
+    rig.run_clocks(50)
+    rig.w16(OCR1A, 0)
+    with pytest.raises(UnsupportedConfiguration, match=r"in its double buffer\) as TOP"):
+        rig.mode(11, CS10)
+    rig.run_clocks(300)                          # runs on in mode 15

@@ -6,6 +6,7 @@ import io
 import shutil
 from contextlib import redirect_stdout
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 
@@ -82,8 +83,11 @@ def test_an_avr_peripheral_outside_the_io_space_is_refused_not_a_bus_fault_later
 
 
 def test_a_default_vector_the_core_does_not_have_is_refused(tmp_path, capsys):
+    path = _edited(tmp_path, "pro-mini", "vectors = 26", "vectors = 20")
+    assert "ADC: vector 21 (its default) is not one of the core's 20 vectors" in _one_error(
+        capsys, ["run", path, "--duration", "1ms"])
     path = _edited(tmp_path, "pro-mini", "vectors = 26", "vectors = 10")
-    assert "vector 21 (its default) is not one of the core's 10 vectors" in _one_error(
+    assert "TIMER0: vector 14 is not one of the core's 10 vectors" in _one_error(
         capsys, ["run", path, "--duration", "1ms"])
 
 
@@ -182,7 +186,11 @@ def test_an_empty_firmware_name_is_refused_as_empty(capsys):
 def test_a_boot_address_off_the_vector_tables_alignment_is_the_profiles_mistake(tmp_path, capsys):
     path = _edited(tmp_path, "nucleo-f746", "boot_address = 0x00200000", "boot_address = 0x1")
     msg = _one_error(capsys, ["run", path, "--firmware", "controlmotor", "--duration", "1ms"])
-    assert f"b.toml:{_line_of(path, 'boot_address')}: [core] boot_address = 0x1: a vector table is aligned" in msg
+    assert f"b.toml:{_line_of(path, 'boot_address')}: [core] boot_address = 0x1: a vector table of 114 " in msg
+    # 16 + 98 entries of 4 bytes: 456, aligned to 512 (ARMv7-M, VTOR); 128 alone is not enough
+    path = _edited(tmp_path, "nucleo-f746", "boot_address = 0x00200000", "boot_address = 0x00200080")
+    assert "aligned to 512 bytes; the nearest are 0x200000 and 0x200200" in _one_error(
+        capsys, ["run", path, "--firmware", "controlmotor", "--duration", "1ms"])
 
 
 def test_the_shipped_topic_maps_still_load(tmp_path):
@@ -244,3 +252,69 @@ def test_a_motor_is_the_wheel_of_one_body_only():
     with pytest.raises(ConfigError, match="is a wheel of body already"):
         RoverBody(sim.kernel, name="body2", motors=wheels, sides="LRLR")
     sim.close()
+
+
+def test_a_timer_output_on_a_pin_a_part_drives_is_refused(tmp_path, capsys):
+    path = _edited(tmp_path, "pro-mini", 'outputs = { A = "PB1", B = "PB2" }', 'outputs = { A = "PD3", B = "PB2" }')
+    assert "[pins] has encoder.A drive that pin" in _one_error(capsys, ["run", path, "--duration", "1ms"])
+
+
+def test_a_link_target_driven_by_two_sources_is_refused(tmp_path, capsys):
+    path = _edited(tmp_path, "rover-diff", '"estop.ENABLE_OUT" = [', '"estop.SENSE" = ["left.ibt2.R_EN"]\n'
+                   '"estop.ENABLE_OUT" = [')
+    path = Path(path)
+    path.write_text(path.read_text().replace('"rcm.GPIO3_0" = "estop.SENSE"\n', ""))
+    assert "is driven by estop.SENSE too" in _one_error(capsys, ["run", str(path), "--duration", "1ms"])
+
+
+def test_a_rover_wheels_load_in_a_members_own_set_is_refused_at_its_line(tmp_path, capsys):
+    path = _edited(tmp_path, "rover-diff", 'set = { "firmware.i2c_address" = 0x08 }',
+                   'set = { "firmware.i2c_address" = 0x08, "motor.load_torque" = 5.0 }')
+    msg = _one_error(capsys, ["run", path, "--duration", "1ms"])
+    assert f"b.toml:{_line_of(path, 'motor.load_torque')}: member left: set: motor.load_torque" in msg
+
+
+def test_two_pub_topics_on_one_symbol_are_an_alias_not_a_conflict(tmp_path):
+    elf = _image(tmp_path, topics_edit=lambda t: t + '\n[topics."/pos"]\nsymbol = "motor1_get_pos"\n'
+                 'type = "f32"\ndirection = "pub"\n')
+    sim = mcusim.load("nucleo-f746", firmware=elf)
+    sim.run(seconds="30ms")
+    assert sim.topic("/pos") == sim.topic("/motor1/get_pos")
+    sim.close()
+
+
+def test_a_plugin_peripheral_may_make_pins_of_its_own_and_take_no_bus(tmp_path):
+    """The pin check is for a port's mistyped pin (PD9); a plugin's own pin ("BUZZ") and a
+    plugin's optional bus left out (None, not a bus named None) are its business."""
+    from mcusim import kinds
+    from mcusim.params import Param
+    from mcusim.registers import Peripheral
+
+    class Beeper(Peripheral):
+        BUS_WIDTH = 1
+        ACCESS_SIZES = (1,)
+        PARAMS: ClassVar[dict] = {"pin": Param("BUZZ"), "bus": Param(None, kind=str)}
+
+        def __init__(self, name, mcu, pin="BUZZ", bus=None):
+            super().__init__(name)
+            self.out, self.bus = mcu.add_pin(pin), bus
+    kinds.register("peripheral", "test-beeper", Beeper)
+    try:
+        path = _edited(tmp_path, "pro-mini", '[[peripheral]]\nname = "EXINT"',
+                       '[[peripheral]]\nname = "BEEP"\nkind = "test-beeper"\npin = "BUZZ"\n\n'
+                       '[[peripheral]]\nname = "EXINT"')
+        sim = mcusim.load(path, firmware=False)
+        assert sim.mcu.periph["BEEP"].bus is None and "BUZZ" in sim.mcu.pins
+        sim.close()
+    finally:
+        kinds._entry_points("peripheral").pop("test-beeper", None)
+
+
+def test_a_timers_default_vector_beyond_the_cores_is_refused(tmp_path, capsys):
+    path = _edited(tmp_path, "pro-mini", "vectors = 26", "vectors = 12")
+    text = Path(path).read_text()
+    for name in ("ADC", "TWI"):
+        text = text.replace(f'name = "{name}"\n', f'name = "{name}"\nvector = 5\n', 1)
+    Path(path).write_text(text)
+    msg = _one_error(capsys, ["run", path, "--duration", "1ms"])
+    assert "TIMER0: vector 14 is not one of the core's 12 vectors" in msg     # Timer0's own default

@@ -317,3 +317,25 @@ def test_a_longer_duration_given_on_the_command_line_admits_the_files_later_time
     assert "after the end of the run (duration 100ms)" in capsys.readouterr().err
     assert main(["run", "nucleo-f746", "--scenario", str(sc), "--duration", "300ms", "-q"]) == 0
     assert "PASS" in capsys.readouterr().out
+
+
+def test_run_scenario_with_a_longer_duration_admits_the_later_times_as_the_cli_does(tmp_path):
+    from mcusim.scenario import run_scenario
+    sc = tmp_path / "s.toml"
+    sc.write_text('[scenario]\nboard = "pro-mini"\nduration = "10ms"\n[[at]]\ntime = "30ms"\n'
+                  'publish = { velocity = 5 }\n')
+    _sim, scn = run_scenario(sc, duration="40ms")
+    assert any("velocity" in text for _, text in scn.log)      # the action at 30 ms ran
+
+
+def test_a_scenario_may_come_through_a_pipe(tmp_path):
+    import os
+    import threading
+    fifo = tmp_path / "s.fifo"
+    os.mkfifo(fifo)
+    body = '[scenario]\nboard = "pro-mini"\nduration = "5ms"\n'
+    writer = threading.Thread(target=lambda: fifo.write_text(body))
+    writer.start()
+    sc = load_scenario(str(fifo))
+    writer.join()
+    assert sc.board == "pro-mini"

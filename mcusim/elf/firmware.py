@@ -105,18 +105,20 @@ def read_topic_map(elf_path: str, image) -> dict:
 
 
 def _no_shared_storage(topics: dict, where: str) -> None:
-    """No two topics (values or counts) share bytes of RAM: a host write to one would change
-    another behind the firmware's back."""
-    spans = sorted((a, a + size, what) for t in topics.values()
-                   for a, size, what in ((t.address, t.size, t.name), (t.count_addr, 4, f"{t.name} (count)"))
+    """No storage the host writes (a sub topic's value, a count) shares bytes of RAM with another
+    topic's: the write would change that one behind the firmware's back. Two pub topics reading
+    one symbol (an alias) are fine."""
+    spans = sorted((a, a + size, what, written) for t in topics.values()
+                   for a, size, what, written in ((t.address, t.size, t.name, t.direction == "sub"),
+                                                  (t.count_addr, 4, f"{t.name} (count)", True))
                    if a is not None)
-    end, last = -1, None
-    for a, e, what in spans:
-        if a < end:
-            raise ConfigError(f"{where}: topics {last} and {what} share RAM at {a:#010x}; each needs a symbol "
-                              "of its own")
-        if e > end:
-            end, last = e, what
+    for i, (a0, e0, w0, h0) in enumerate(spans):
+        for a1, _, w1, h1 in spans[i + 1:]:
+            if a1 >= e0:
+                break
+            if h0 or h1:
+                raise ConfigError(f"{where}: topics {w0} and {w1} share RAM at {a1:#010x}, and the host writes "
+                                  "one of them; each needs a symbol of its own")
 
 
 class ElfFirmware:

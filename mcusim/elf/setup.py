@@ -32,9 +32,13 @@ def build_core(profile: dict, mcu, image, memories):
     core_spec = profile["core"]
     kind = core_spec.get("kind", "cortex-m4")
     boot = core_spec.get("boot_address", 0)
-    if boot % 128:      # VTOR.TBLOFF is bits [31:7] (ARMv7-M ARM B3.2.5): a table is 128-byte aligned
-        msg = (f"[core] boot_address = {boot:#x}: a vector table is aligned to at least 128 bytes "
-               f"(VTOR holds bits 31:7); the nearest are {boot - boot % 128:#x} and {boot - boot % 128 + 128:#x}")
+    # a vector table is aligned to its size rounded up to a power of two, at least 128 bytes
+    # (ARMv7-M ARM B3.2.5, VTOR): 16 system entries and the NVIC's lines, 4 bytes each
+    size = 4 * (16 + core_spec.get("nvic_irqs", 98))
+    align = max(128, 1 << (size - 1).bit_length())
+    if boot % align:
+        msg = (f"[core] boot_address = {boot:#x}: a vector table of {size // 4} entries is aligned to "
+               f"{align} bytes; the nearest are {boot - boot % align:#x} and {boot - boot % align + align:#x}")
         raise profile.err(msg, "core", None, "boot_address") if hasattr(profile, "err") else ConfigError(msg)
     bus = mcu.bus
     dwt, fpu = Dwt(mcu), Fpu("FPU")

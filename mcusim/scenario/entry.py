@@ -60,7 +60,7 @@ def run_scenario(path, board: str | None = None, *, duration=None, overrides: di
     ``(sim, scenario)``. ``setup(sim)`` is called before the run (attach a VCD trace there);
     ``runner(sim, seconds)`` runs it (default ``sim.run(seconds=...)``); the simulation is closed
     afterwards. ``scenario.failed`` tells whether an expectation failed."""
-    sc = path if isinstance(path, Scenario) else load_scenario(path)
+    sc = path if isinstance(path, Scenario) else load_scenario(path, duration)
     if duration is not None:
         sc.duration = duration
     sim = sc.build(board, overrides, firmware)

@@ -468,9 +468,29 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
             return self._icr
         return src
 
+    # what _configure changes: restored when the new configuration is refused (a register write
+    # that raises leaves the register, and the timer, as they were)
+    _CONFIG_STATE = ("_mode", "_kind", "_topsrc", "_dual", "_upd", "_ocr", "_top_flags", "_com", "_act",
+                     "_top", "_N", "_run", "_k0", "_ks", "_kblock", "_block_start", "_cs", "_kj", "_qj",
+                     "_L", "_exu", "_c0", "_d0")
+
     def _configure(self, mode, cs, coms):
-        """Apply a new mode/clock/COM configuration (validated by the caller)."""
+        """Apply a new mode/clock/COM configuration (validated by the caller); one refused
+        (UnsupportedConfiguration) leaves the timer as it was."""
         self._reanchor()
+        saved = {k: (dict(v) if isinstance(v, dict) else v)
+                 for k, v in ((k, getattr(self, k)) for k in self._CONFIG_STATE)}
+        try:
+            self._configure_to(mode, cs, coms)
+        except UnsupportedConfiguration:
+            for k, v in saved.items():
+                setattr(self, k, v)
+            raise
+        for ch in self.CHANNELS:
+            self._drive(ch)
+        self._plan(self._clock_now())
+
+    def _configure_to(self, mode, cs, coms):
         self._mode = mode
         self._kind, self._topsrc = self.MODES[mode]
         self._dual = self._kind in ("pc", "pfc")
@@ -508,10 +528,11 @@ class AvrTimer(SteadyOutputs, ServedOverflows, Peripheral):
             self._run = False
             self._block_start, self._kblock = pending, -1
         self._cs = cs
+        if self._dual and self._topsrc == "A" and self._buf["A"] == 0 and self._ocr["A"] != 0:
+            # the buffered 0 would become TOP at the next update point, refused mid-run there
+            raise UnsupportedConfiguration(self.name, self._topname(), None, 0,
+                                           "(in its double buffer) as TOP of a dual-slope mode is not modelled")
         self._derive()
-        for ch in self.CHANNELS:
-            self._drive(ch)
-        self._plan(self._clock_now())
 
     def _retop(self):
         """TOP or an active compare value changed at once (ICRn write, OCR write in normal/CTC)."""

@@ -4,7 +4,9 @@ touching them gets an error naming the register instead of a bus fault at a bare
 Each is declared at its data-space address (datasheet, "Register Summary") with its reset
 value; reading gives that value, and writing anything else raises
 :class:`~mcusim.errors.UnsupportedConfiguration` naming the register (the unit behind it is not
-modelled). GPIOR0-2 are general-purpose storage and are modelled as such. The board builder maps
+modelled). GPIOR0-2 are general-purpose storage and are modelled as such; MCUSR holds the reset
+flags (PORF after power-on, each cleared by writing 0); WDTCSR takes the writes of
+``wdt_disable()`` (WDCE|WDE, then WDE = 0), which leave the watchdog off. The board builder maps
 only the addresses no declared peripheral took, so a profile that adds a model of one of these
 units (a USART0, Timer2) takes its registers over.
 """
@@ -28,7 +30,7 @@ UNITS = (
     ("EEARH", 0x42, 0x00, "EEPROM"),
     ("SPCR", 0x4C, 0x00, "SPI"), ("SPSR", 0x4D, 0x00, "SPI"), ("SPDR", 0x4E, 0x00, "SPI"),
     ("ACSR", 0x50, 0x00, "analog comparator"), ("DIDR1", 0x7F, 0x00, "analog comparator"),
-    ("SMCR", 0x53, 0x00, "sleep modes"), ("MCUSR", 0x54, 0x01, "reset flags"),
+    ("SMCR", 0x53, 0x00, "sleep modes"),
     ("MCUCR", 0x55, 0x00, "MCU control"), ("SPMCSR", 0x57, 0x00, "self-programming"),
     ("SPL", 0x5D, 0xFF, "stack pointer"), ("SPH", 0x5E, 0x08, "stack pointer"),
     ("WDTCSR", 0x60, 0x00, "watchdog"), ("CLKPR", 0x61, 0x00, "clock prescaler"),
@@ -36,7 +38,10 @@ UNITS = (
     ("UCSR0A", 0xC0, 0x20, "USART0"), ("UCSR0B", 0xC1, 0x00, "USART0"), ("UCSR0C", 0xC2, 0x06, "USART0"),
     ("UBRR0L", 0xC4, 0x00, "USART0"), ("UBRR0H", 0xC5, 0x00, "USART0"), ("UDR0", 0xC6, 0x00, "USART0"),
 )
-STORAGE = (("GPIOR0", 0x3E), ("GPIOR1", 0x4A), ("GPIOR2", 0x4B))
+STORAGE = (("GPIOR0", 0x3E), ("GPIOR1", 0x4A), ("GPIOR2", 0x4B), ("MCUSR", 0x54))
+# MCUSR: the reset flags, PORF after a power-on reset; firmware clears them by writing 0
+MCUSR_FIELDS = tuple(Field(f, i, access="rc_w0") for i, f in enumerate(("PORF", "EXTRF", "BORF", "WDRF")))
+WDE, WDCE, WDIE = 0x08, 0x10, 0x40
 
 
 class AvrUnmodelled(Peripheral):
@@ -49,13 +54,17 @@ class AvrUnmodelled(Peripheral):
         regs = [Register(reg, addr, reset=reset, width=8,
                          fields=(Field(reg, 0, 8, modelled=False, doc=f"{unit} is not modelled"),))
                 for reg, addr, reset, unit in UNITS if addr in free]
-        regs += [Register(reg, addr, width=8) for reg, addr in STORAGE if addr in free]
+        regs += [Register(reg, addr, width=8, reset=0x01 if reg == "MCUSR" else 0,
+                          fields=MCUSR_FIELDS if reg == "MCUSR" else ())
+                 for reg, addr in STORAGE if addr in free]
         self.REGISTERS = tuple(regs)
         self.units = {reg: unit for reg, _, _, unit in UNITS}
         super().__init__(name)
 
     def write_register(self, reg, data, lanes=-1):
         unit = self.units.get(reg.name)
+        if reg.name == "WDTCSR" and not data & WDIE and (not data & WDE or data & WDCE):
+            return      # wdt_disable(): WDCE|WDE, then 0 (the watchdog stays off, as modelled)
         if unit is not None and data & 0xFF != reg.reset:
             raise UnsupportedConfiguration(self.name, reg.name, None, data & 0xFF,
                                            f"is not supported ({unit}: not modelled)")
