@@ -9,12 +9,12 @@ point), never a Python object to import. The whole format is in ``docs/boards.md
 from __future__ import annotations
 
 import importlib.resources
-import inspect
-import re
 from fractions import Fraction
 from pathlib import Path
 
 from . import kinds
+from .board_checks import AVR_IO, check_irq_numbers, check_pins_have_ports, missing_args, part_driving
+from .board_checks import located as _located
 from .errors import ConfigError, McusimError, read_input
 from .firmware import Cpu, Rtos
 from .irq import AvrInterrupts, Nvic, Scb
@@ -27,8 +27,6 @@ from .time import TimeBase, parse_frequency
 
 # the errors a model's constructor raises for a value it cannot take: reported as one line naming
 # the peripheral, part or firmware (the schema catches the common mistakes first, with their line)
-#: the ATmega328P's I/O registers in data space: 64 I/O and 160 extended I/O (datasheet, memory map)
-AVR_IO = (0x20, 0xFF)
 BUILD_ERRORS = (TypeError, ValueError, ArithmeticError, LookupError, AttributeError)
 
 
@@ -87,40 +85,6 @@ def profile_files(board: str) -> list:
             if isinstance(m, dict) and isinstance(m.get("board"), str):
                 files += [f for f in [profile_file(m["board"])] if f is not None]
     return files
-
-
-def _check_pins_have_ports(profile, where, mcu) -> None:
-    """Every pin a peripheral named (an external interrupt's ``pins``) is a pin of a declared port:
-    a peripheral creates the pins it names, so a misspelt one (``PD9``) would be a pin of its own
-    that nothing drives, and the interrupt would never fire."""
-    owned, families = set(), set()
-    for p in mcu.periph.values():
-        for item in getattr(p, "pins", None) or ():
-            for n in (item if isinstance(item, list) else [item]):
-                owned.add(id(n))
-                families.add(_pin_family(n.name))
-    for name, net in mcu.pins.items():
-        # a pin of its own that a peripheral made (a plugin's "BUZZ") is not a port's mistyped pin
-        if id(net) in owned or _pin_family(name) not in families:
-            continue
-        for index, spec in enumerate(profile.get("peripheral", [])):
-            for key, value in spec.items():
-                if value == name or (isinstance(value, list) and name in value):
-                    raise _located(profile, where, f"peripheral {spec.get('name')}: {key} = {value!r}: no "
-                                   f"port has a pin {name} (ports: {', '.join(_port_names(mcu)) or 'none'})",
-                                   "peripheral", index, key)
-        raise ConfigError(f"{where}: pin {name} belongs to no port")
-
-
-def _port_names(mcu):
-    return [n for n, p in mcu.periph.items() if getattr(p, "pins", None)]
-
-
-def _pin_family(name: str) -> str:
-    """The naming family of a port pin: its leading letters less the port letter ("PD9" -> "P",
-    "GPIO3_3" -> "GPI"), the same for every pin of a port scheme."""
-    letters = re.match(r"[A-Za-z]*", name).group()
-    return letters[:-1] if len(letters) > 1 else letters
 
 
 def parse_value(text: str):
@@ -277,13 +241,6 @@ def located_part_error(profile, where: str, exc: _PartError) -> ConfigError:
     return _located(profile, where, msg, "part", index, *((key,) if key else ()))
 
 
-def _located(profile, where: str, msg: str, table=None, index=None, *key) -> ConfigError:
-    """``msg`` at the profile's line of ``key`` in ``table`` when the profile knows its lines."""
-    if hasattr(profile, "err"):
-        return profile.err(msg, table, index, *key)
-    return ConfigError(f"{where}: {msg}")
-
-
 def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: str,
                 lookup=None) -> dict:
     """Instantiate plant parts in declaration order. ``wiring[part][TERMINAL]`` is the Net of each
@@ -354,7 +311,7 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
                     continue
                 raise _PartError(f"part {name}: terminal {term} is not wired in [pins]", name, None, None, where)
             args[term.lower()] = net
-        missing = _missing_args(cls, 1, {"name", *args, *params})
+        missing = missing_args(cls, 1, {"name", *args, *params})
         if missing:
             raise _PartError(f"part {name} ({kind.name}): missing {missing} = ... (its constructor has no "
                              "default)",
@@ -375,49 +332,6 @@ def build_parts(kernel, specs: list, part_overrides: dict, wiring: dict, where: 
         if part not in parts:
             raise ConfigError(f"{where}: [pins] names part {part!r}, which is not declared")
     return parts
-
-
-def _part_driving(profile, pin_name: str):
-    """The part terminal ("encoder.A") that [pins] wires to ``pin_name`` if the part drives it
-    (its kind's OUTPUTS), else None."""
-    target = profile.get("pins", {}).get(pin_name)
-    if not isinstance(target, str):
-        return None
-    part, _, term = target.partition(".")
-    spec = next((q for q in profile.get("part", []) if q.get("name") == part), None)
-    if spec is None:
-        return None
-    try:
-        kind = kinds.lookup("part", spec.get("kind"), "")
-    except ConfigError:
-        return None
-    return target if kind.outputs and term.upper() in kind.outputs else None
-
-
-def _missing_args(cls, positional: int, given: set) -> str | None:
-    """The first parameter without a default that the constructor of ``cls`` would miss (after
-    the ``positional`` arguments passed by position), else None: named as the profile key, not as
-    Python's "missing 1 required positional argument"."""
-    params = list(inspect.signature(cls.__init__).parameters.values())[1 + positional:]
-    for prm in params:
-        if (prm.default is inspect.Parameter.empty and prm.name not in given
-                and prm.kind in (prm.POSITIONAL_OR_KEYWORD, prm.KEYWORD_ONLY)):
-            return prm.name
-    return None
-
-
-def _check_irq_numbers(spec: dict, limit: int, what: str, where: str, kind=None) -> None:
-    """Interrupt numbers a peripheral is given, or takes by default, must exist on the core (NVIC
-    lines, AVR vectors)."""
-    for key in ("irq", "irqs", "vector", "vectors"):
-        given = key in spec
-        v = spec.get(key) if given else getattr(kind, "params", {}).get(key)
-        v = getattr(v, "default", v)
-        values = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
-        for n in values:
-            if isinstance(n, int) and not 0 <= n < limit:
-                raise ConfigError(f"{where}: peripheral {spec['name']}: {key} {n}{'' if given else ' (its default)'} "
-                                  f"is not one of the core's {limit} {what}")
 
 
 def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, firmware_params: dict,
@@ -469,7 +383,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         pwhere = f"{where}: peripheral {spec.get('name')}"
         kind = kinds.lookup("peripheral", spec.get("kind"), pwhere)
         cls = kind.load()
-        _check_irq_numbers(spec, limit, what, where, kind)
+        check_irq_numbers(spec, limit, what, where, kind)
         kwargs = _part_params(kind, {k: v for k, v in spec.items() if k not in ("base", "clock", "outputs")},
                               {}, spec["name"], where)
         kwargs.update(_resolve_peripheral_refs(spec, mcu, kernel, buses, where, kind))
@@ -480,7 +394,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                 raise _located(profile, where, f"peripheral {spec['name']}: no clock {spec['clock']!r} "
                                f"(clocks: {', '.join(mcu.clocks)})", "peripheral", index, "clock")
             kwargs["clock"] = mcu.clocks[spec["clock"]]
-        missing = _missing_args(cls, 2, set(kwargs))
+        missing = missing_args(cls, 2, set(kwargs))
         if missing:
             raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): missing {missing} = ... "
                            "(its constructor has no default)", "peripheral", index)
@@ -508,7 +422,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             raise _located(profile, where, f"peripheral {spec['name']} ({kind.name}): {exc}", "peripheral",
                            index) from None
         vecs = getattr(p, "vectors", None)     # as built: a model's own defaults too (Timer0's 14-16)
-        _check_irq_numbers({"name": spec["name"], "vector": list(vecs.values()) if isinstance(vecs, dict)
+        check_irq_numbers({"name": spec["name"], "vector": list(vecs.values()) if isinstance(vecs, dict)
                             else vecs}, limit, what, where)
         if "clock" in spec:
             mcu.clock_users.setdefault(spec["clock"], []).append(p)
@@ -516,7 +430,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         from mcusim.periph.avr.unmodelled import STORAGE, UNITS, AvrUnmodelled
         free = {a for _, a, *_ in UNITS + STORAGE if bus.peripheral_at(a) is None}
         bus.attach_registers(0, AvrUnmodelled("ATmega328P", free))
-    _check_pins_have_ports(profile, where, mcu)
+    check_pins_have_ports(profile, where, mcu)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
     for pin_name, level in profile.get("pull", {}).items():
         if level not in (0, 1):
@@ -535,7 +449,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
                                f"{taken[pin_name]} already drives that pin (one output per pin)",
                                "peripheral", index, "outputs", out)
             taken[pin_name] = f"{spec['name']} output {out}"
-            driver = _part_driving(profile, pin_name)
+            driver = part_driving(profile, pin_name)
             if driver is not None:
                 raise _located(profile, where, f"peripheral {spec['name']}: outputs.{out} = {pin_name!r}: "
                                f"[pins] has {driver} drive that pin (one output per pin)",
