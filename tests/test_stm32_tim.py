@@ -581,7 +581,8 @@ def test_input_capture_outside_encoder_mode_raises():
 def test_encoder_capture_into_ccr1():
     rig = enc_rig()
     move(rig, FWD[:2])
-    assert rig.r("CCR1") == 11 and rig.r("SR") & 0b10
+    assert rig.r("SR") & 0b10
+    assert rig.r("CCR1") == 11 and not rig.r("SR") & 0b10   # reading CCR1 clears CC1IF (RM0385)
     rig.w("CCR1", 5)  # read-only in input mode
     assert rig.r("CCR1") == 11
 

@@ -172,6 +172,7 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         self._ccr = [0] * 5             # active compare registers (index = channel)
         self._rep = 0                   # repetition down-counter (TIM1/TIM8)
         self._t_wrap, self._ev_wrap = None, None
+        self._ev_steady = None      # fast engine: the waveforms wait for the counter's first clock
         # decoded configuration (cached on register writes)
         self._cms, self._sms = 0, 0
         self._flag_up = self._flag_down = True
@@ -328,6 +329,9 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         if self._ev_wrap is not None:
             self._ev_wrap.cancel()
             self._ev_wrap = None
+        if self._ev_steady is not None:
+            self._ev_steady.cancel()
+            self._ev_steady = None
         lazy, ev_cc, mode, ccr = self._lazy, self._ev_cc, self._mode, self._ccr
         sr_before = self.value["SR"]
         if self._steady:
@@ -368,6 +372,13 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
             elif not up and cnt == 0:
                 up = self._up = True
         steady = self._steady_possible()
+        if steady and self._tb > now:
+            # the counter starts (CEN, UG, ARR from 0) at the next CK_INT edge: until then the
+            # outputs hold the levels of its present value, which a waveform anchored at that
+            # edge would not give (it would show the tail of a period before it); the waveforms
+            # are published there, edge by edge's outputs not having changed in between
+            steady = False
+            self._ev_steady = kernel.at(self._tb, self._plan)
         self._refresh_outputs(keep_waves=steady)
         if not run:
             self._t_wrap = None
@@ -474,8 +485,15 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         ckd = (new >> 8) & 3
         if ckd == 3:
             self._refuse("CR1", old, "CKD", ckd, "is reserved")
-        self._sync()
         cms = (new >> 5) & 3
+        if cms and old & CEN and not (old >> 5) & 3:
+            # RM0385 (CMS): "It is not allowed to switch from edge-aligned mode to center-aligned
+            # mode as long as the counter is enabled (CEN=1)"
+            self._refuse("CR1", old, "CMS", cms, "set while the counter runs edge-aligned (CEN = 1) is "
+                         "not allowed: stop the counter first")
+        if cms and self._sms:
+            self._refuse("CR1", old, "CMS", cms, "in encoder mode (SMS = 1-3) is not modelled")
+        self._sync()
         self._cms = cms
         self._flag_up = cms != 1
         self._flag_down = cms != 2
@@ -491,6 +509,8 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         sms = (new & 7) | ((new >> 13) & 8)
         if sms > 3:
             self._refuse("SMCR", old, "SMS", sms)
+        if sms and self._cms:
+            self._refuse("SMCR", old, "SMS", sms, "with a centre-aligned counter (CMS != 00) is not modelled")
         self._sync()
         self._sms = sms
         if not self._check_inputs():
@@ -604,7 +624,12 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
     def _read_captured(self, reg: str, stored: int) -> int:
         if self._enc_lazy is not None:    # a capture may have happened lazily
             self._lazy_sync()
-            return self.value[reg]
+            stored = self.value[reg]
+        ch = int(reg[-1])
+        if self._cap[ch] and self.value["SR"] & CCIF[ch]:
+            # RM0385 (CCxIF, channel as input): "cleared by software or by reading TIMx_CCRx"
+            self.value["SR"] &= ~CCIF[ch]
+            self._irq()
         return stored
 
     def _read_ccr1(self, stored): return self._read_captured("CCR1", stored)
@@ -660,6 +685,9 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
                          "outside encoder mode")
         self._sync()
         self._decode_enables()
+        for ch in (1, 2):   # RM0385 (ICxPSC): "the prescaler is reset as soon as CCxE=0"
+            if not new >> (4 * (ch - 1)) & 1:
+                self._capn[ch] = 0
         if self._sms:
             for ch in (1, 2):
                 if pol[ch] != saved[ch]:  # TIxFPx = TIx xor CCxP changes at once
