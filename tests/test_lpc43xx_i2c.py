@@ -606,3 +606,32 @@ def test_driver_against_avr_twi_and_wire_on_one_time_base():
     assert all(b - a == 9 * 2040 * T for a, b in itertools.pairwise(si[1:5]))
     assert all(b - a == 9 * 2040 * T for a, b in itertools.pairwise(si[9:14]))
     assert next(t for t, c in twi.status_log if c == 0x60) == si[1]   # both see the byte end at once
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_clearing_of_si_refused_for_its_scl_rate_leaves_the_master_where_it_was(engine):
+    """SCLL below 4 PCLK cycles is refused when SI is cleared for the next bus action; the refused
+    write changes nothing (SI was cleared and STAT read 0xF8, and the master hung owning the bus):
+    with the rate put right, the same clearing sends the address."""
+    import mcusim
+    from mcusim.i2c import MemorySlave
+    sim = mcusim.load("ciaa-edu", firmware=False, engine=engine)
+    m = sim.mcu
+    i2c = m.periph["I2C0"]
+    MemorySlave(i2c.bus, 0x21)
+    base = 0x400A1000
+    m.write32(base + 0x10, 102)
+    m.write32(base + 0x14, 102)
+    m.write32(base + 0x00, I2EN | STA)
+    sim.run(cycles=2000)
+    assert m.read32(base + 0x04) == 0x08
+    m.write32(base + 0x08, 0x21 << 1)
+    m.write32(base + 0x14, 3)
+    with pytest.raises(UnsupportedConfiguration, match="SCLL"):
+        m.write32(base + 0x18, SI | STA)
+    assert m.read32(base + 0x00) & SI and m.read32(base + 0x04) == 0x08
+    m.write32(base + 0x14, 102)
+    m.write32(base + 0x18, SI | STA)
+    sim.run(cycles=20000)
+    assert m.read32(base + 0x04) == 0x18           # SLA+W sent, ACK received
+    sim.close()

@@ -487,3 +487,29 @@ def test_a_frame_end_is_not_inert_where_someone_sees_it():
         for b in range(6):
             mcu.write32(THR, b)
         assert u.served_inert(u._tx_ev) is None, case
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_threie_enabled_during_the_initialization_delay_waits_for_it(engine):
+    """UM10503's THRE rule: a byte written to an idle transmitter with the FIFO never holding two
+    sets the THRE interrupt one character time minus the stop bit later. Enabling THREIE right
+    after the write (the common order) must not raise the interrupt at once."""
+    import mcusim
+    sim = mcusim.load("ciaa-edu", firmware=False, engine=engine)
+    m = sim.mcu
+    sim.connect_serial("USART3", "buffer")
+    edges = []
+    m.nvic.line_listeners.append(lambda irq, lv: edges.append((sim.kernel.now, irq, lv)))
+    u3 = 0x400C2000
+    m.write32(u3 + 0x0C, 0x80)      # DLAB
+    m.write32(u3 + 0x00, 10)        # DLL 10: 160 PCLK cycles a bit
+    m.write32(u3 + 0x0C, 3)         # 8N1
+    m.write32(u3 + 0x08, 7)         # FIFOs on, reset
+    sim.run(cycles=10000)
+    t0 = sim.kernel.now
+    m.write32(u3 + 0x00, 0x41)
+    m.write32(u3 + 0x04, 2)         # THREIE
+    sim.run(cycles=3000)
+    ticks = sim.timebase.base_hz // 204_000_000
+    assert [(t - t0) // ticks for t, irq, lv in edges if irq == 27 and lv] == [9 * 160]
+    sim.close()

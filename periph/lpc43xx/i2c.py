@@ -181,6 +181,11 @@ class I2c(Peripheral):
             self.clear_bits("CONSET", STO)   # not in master mode: error recovery, nothing on the bus
         con = self._con
         if con & STA and not self._owner and self._inflight is None and not con & SI:
+            try:
+                self._check_rate()
+            except UnsupportedConfiguration:
+                self.value["CONSET"] = old      # refused: CONSET as it was (the START not asked)
+                raise
             self._issue_start()
         self._sync()
 
@@ -196,6 +201,8 @@ class I2c(Peripheral):
         action = None
         if si_falls and after & I2EN and self._owner:
             action = self._action(after)   # may raise: then nothing has changed
+            if action is not None:
+                self._check_rate()         # (the action checks it too, after the state changed)
         self.value["CONSET"] = after
         if not after & I2EN:
             self.clear_bits("CONSET", STO)

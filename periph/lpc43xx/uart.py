@@ -80,7 +80,9 @@ Transmitter
   "initialization delay"; for a byte written to an idle transmitter that is from the frame's start),
   unless THR is written meanwhile. A TX FIFO reset that empties the FIFO sets it at once (choice). A THR write clears it, and so does an
   IIR read that reports THRE. Enabling IER.THREIE while THRE = 1 sets it at once (16550 behaviour
-  [I]; NuttX does not rely on it, it calls its xmit routine itself).
+  [I]; NuttX does not rely on it, it calls its xmit routine itself), except during the
+  initialization delay, which still decides (the common "write the first byte, then enable
+  THREIE" gets its interrupt a character time later, not at once).
 
 Receiver
 --------
@@ -468,8 +470,8 @@ class Usart(Peripheral):
         return v | intid << 1
 
     def _write_ier(self, old, new):
-        if new & THREIE and not old & THREIE and not self._txq:
-            self._thre_int = True
+        if new & THREIE and not old & THREIE and not self._txq and self._thre_ev is None:
+            self._thre_int = True       # (during the initialization delay its own event sets it)
         self._update_irq()
 
     def _write_fcr(self, old, new):
