@@ -6,7 +6,7 @@ but one (a motor current resting at its steady state) record changes at differen
 signals are still equal within the tolerance, and must compare equal. A real difference must not.
 """
 
-from engine_compare import REL, differences, real_mismatch, scalar_mismatch
+from engine_compare import REL, _compare_values, differences, real_mismatch, scalar_mismatch
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -67,3 +67,18 @@ def test_an_edge_one_base_tick_apart_is_reported_with_the_rounding_tie_mark():
     assert "rounding tie" not in scalar_mismatch("mcm1.PD3", ref, extra, tick)
     level = [(0, "0"), (524445001225, "0"), (524445100000, "0")]     # another level
     assert "rounding tie" not in scalar_mismatch("mcm1.PD3", ref, level, tick)
+
+
+def test_a_turn_in_place_compares_its_pose_residues_at_the_scale_of_the_wheels_travel():
+    """Found on a generated rover run (lin = 0, ang = 0.5 rad/s, E-stop at 159 ms): x and y of a
+    turn in place are rounding residues of the wheels' travel, -3.4e-23 m in one engine and -3.0e-20 m
+    in the other, which a scale of |x|, |y| alone reported as a disagreement. |yaw| counts as a
+    length (times 1 m); a real difference of a pose still shows."""
+    ref = {"pose": {"x": -3.3550445645150804e-23, "y": 1.2e-22, "yaw": 0.0745}}
+    fast = {"pose": {"x": -3.039154208385124e-20, "y": 1.1e-22, "yaw": 0.0745}}
+    problems: list = []
+    _compare_values("summary", ref, fast, problems)
+    assert problems == []
+    fast["pose"]["x"] = 1e-6                    # a millimetre's thousandth: a real difference
+    _compare_values("summary", ref, fast, problems)
+    assert problems and problems[0].startswith("summary.pose.x")
