@@ -129,8 +129,6 @@ def _check_owned_loads(members: dict, member_sets: dict, specs: list, profile, w
     """A wheel motor's load_torque or load_inertia given by ``--set`` or by a member's own ``set``
     in the system file: the rover body owns them and sets them from the vehicle's motion (the
     value would be overwritten before the first step)."""
-    why = ("this wheel's load comes from {} (the rover body sets it from the vehicle's motion at every "
-           "step); change the body's parameters (mass, crr, mu_turn ...) instead")
     for index, m in enumerate(specs):
         name = m["name"]
         ns = members[name]
@@ -140,7 +138,7 @@ def _check_owned_loads(members: dict, member_sets: dict, specs: list, profile, w
             owner = getattr(motor, "load_owner", None)
             if owner is None or param not in getattr(motor, "_OWNED", ()):
                 continue
-            msg = why.format(getattr(owner, "name", owner))
+            msg = motor.owned_load_reason()
             if key in member_sets[name]:
                 raise ConfigError(f"--set {name}.{key}: {msg}")
             raise _located(profile, where, f"member {name}: set: {key}: {msg}", "member", index, "set", key)

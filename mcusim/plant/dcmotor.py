@@ -232,11 +232,14 @@ class DcMotor(PeriodicDrive):
         would overwrite it at its next step)."""
         owned = [k for k in self._OWNED if k in overrides]
         if owned and self.load_owner is not None:
-            who = getattr(self.load_owner, "name", self.load_owner)
-            raise ConfigError(f"{self.name}.{owned[0]}: this wheel's load comes from {who} (the rover body "
-                              "sets it from the vehicle's motion at every step); change the body's parameters "
-                              "(mass, crr, mu_turn ...) instead")
+            raise ConfigError(f"{self.name}.{owned[0]}: {self.owned_load_reason()}")
         self._apply_params(overrides)
+
+    def owned_load_reason(self) -> str:
+        """Why this motor's load may not be set (its ``load_owner`` sets it), for a message."""
+        who = getattr(self.load_owner, "name", self.load_owner)
+        return (f"this wheel's load comes from {who} (the rover body sets it from the vehicle's motion at "
+                "every step); change the body's parameters (mass, crr, mu_turn ...) instead")
 
     def _apply_params(self, overrides) -> None:
         new = MotorParams.from_mapping(overrides, base=self.params)

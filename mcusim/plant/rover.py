@@ -37,8 +37,8 @@ Model (a documented approximation; values without a source are [I]):
 5. **Coupling in time.** The load torques are recomputed every ``step`` (1 ms, a ``PRIO_PLANT``
    kernel event) from the wheel speeds at that instant and held constant in between (applied with
    :meth:`DcMotor.set_load_by`: the body owns the load, and anyone else's ``set_params`` of it is
-   refused), so each motor stays exact between events with a constant load). The smooth signs make the held loads behave like a damper near zero speed; with the
-   vehicle share (m/n)·r² as the wheel inertia (the rotor and the wheel disc only add to it) the
+   refused), so each motor stays exact between events with a constant load). The smooth signs
+   make the held loads behave like a damper near zero speed; with the vehicle share (m/n)·r² as the wheel inertia (the rotor and the wheel disc only add to it) the
    damper's time constant is v_ε/(crr·g) = 34 ms (rolling) and χ·track²·ω_ε/(mu_turn·g·wheelbase)
    = 10 ms (turning) with the defaults (times η when the load drives through the gearbox), against
    the 1 ms hold: the explicit hold is stable and accurate (checked at construction: the step must

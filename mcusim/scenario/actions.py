@@ -77,10 +77,8 @@ class Torque(Action):
 
     def prepare(self, sc, sim, spec, line, where):
         motor = sc._part(sim, spec["motor"], "motor", line, where)
-        owner = getattr(motor, "load_owner", None)
-        if owner is not None:       # a rover body sets it at every step: the action would be lost
-            raise sc._err(line, f"{where}: {spec['motor']}'s load comes from {getattr(owner, 'name', owner)} (the "
-                          "rover body sets it from the vehicle's motion at every step); a wheel held back "
+        if getattr(motor, "load_owner", None) is not None:    # the action would be overwritten
+            raise sc._err(line, f"{where}: {spec['motor']}: {motor.owned_load_reason()}; a wheel held back "
                           "is a fault = { kind = \"stall\", ... } on its motor")
 
         def fn():
