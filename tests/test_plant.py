@@ -324,6 +324,19 @@ def test_encoder_counts_through_reversal():
 
 # ---- configuration ---------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("cpr", [1, 2, 10, 63, 2047])
+def test_encoder_counts_per_rev_is_four_per_disc_cycle_so_other_counts_raise_naming_it(cpr):
+    # the plant notes §3.1: A and B make n_cyc cycles per revolution, C4 = 4·n_cyc counts; a count
+    # that is not a multiple of 4 is no quadrature disc (the A/B state at θ and θ + 2π would differ)
+    k = Kernel(TimeBase([FS]))
+    m = DcMotor(k, "m")
+    with pytest.raises(ConfigError, match=rf"encoder e: counts_per_rev = {cpr}\b.*multiple of 4"):
+        QuadratureEncoder(k, m, Net("A"), Net("B"), counts_per_rev=cpr, name="e")
+    for ok in (4, 48, 64, 2048):
+        assert QuadratureEncoder(k, DcMotor(k, f"m{ok}"), Net("A"), Net("B"), counts_per_rev=ok,
+                                 name="e").counts_per_rev == ok
+
+
 def test_unknown_parameter_names_raise_config_error_naming_the_key():
     tb = TimeBase([FS])
     k = Kernel(tb)
