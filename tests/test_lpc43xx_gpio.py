@@ -172,3 +172,23 @@ def test_register_access_tracer_sees_pin_register_names(m):
     m.read32(W(3, 5))
     m.write32(DIR(3), 1 << 5)
     assert seen == [("write", "B101", 1), ("read", "W101", 0), ("write", "DIR3", 1 << 5)]
+
+
+def test_reset_gives_the_reset_values_dir_0_releases_every_pin_and_clears_the_output_bits(m):
+    # UM10503 GPIO register tables: DIR, MASK and the output bits (read in SET) reset to 0, so after a
+    # reset every pin is an input (not driven by the block) and SET reads 0, whatever was set before
+    gpio = m.periph["GPIO"]
+    m.write32(DIR(3), 0b11)
+    m.write32(SET(3), 0b01)
+    m.write32(MASK(3), 0b10)
+    net0 = gpio.pin(3, 0)
+    assert net0.level == 1
+    gpio.reset()
+    assert m.read32(DIR(3)) == 0 and m.read32(SET(3)) == 0 and m.read32(MASK(3)) == 0
+    net0.set("other", 0)                         # released: another driver owns it, no contention
+    assert net0.level == 0 and m.read32(PIN(3)) & 1 == 0
+    net0.set("other", None)
+    m.write32(DIR(3), 0b01)                      # an output again: it drives the reset output bit 0
+    assert net0.level == 0
+    with pytest.raises(McusimError, match="contention on net GPIO3_0"):
+        net0.set("other", 1)

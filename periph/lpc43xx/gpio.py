@@ -140,6 +140,12 @@ class Gpio(Peripheral):
         self.out[p] = out & self.pinmask
         self._apply(p)
 
+    def reset(self) -> None:
+        """Reset values (0 everywhere): the output latches too, and every pin is released (DIR = 0)."""
+        super().reset()
+        for p in range(self.ports):
+            self._load(p, 0)
+
     # --- port registers --------------------------------------------------------------------------
     @staticmethod
     def _port(reg_name: str) -> int:
