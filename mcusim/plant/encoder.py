@@ -125,8 +125,8 @@ class QuadratureEncoder:
         if int(counts_per_rev) != counts_per_rev or counts_per_rev <= 0:
             raise ConfigError(f"encoder {name}: counts_per_rev = {counts_per_rev!r} must be a positive integer")
         if counts_per_rev % 4:
-            # the plant notes §3.1: C4 = 4·n_cyc (four edges per cycle of A and B); any other count is
-            # no quadrature disc: the A/B state would not repeat after one revolution
+            # the ×4 count of a disc of n lines is 4·n (four edges per cycle of A and B); any other
+            # count is no quadrature disc: the A/B state would not repeat after one revolution
             raise ConfigError(f"encoder {name}: counts_per_rev = {counts_per_rev!r} is not a multiple of 4 "
                               f"(the ×4 count: 4 per cycle of A and B, e.g. {4 * max(1, round(counts_per_rev / 4))})")
         self.kernel, self.motor, self.name = kernel, motor, name
