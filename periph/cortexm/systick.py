@@ -63,13 +63,17 @@ class SysTick(Peripheral):
             self._ev.cancel()
             self._ev = None
         self._val0 = val
-        self._clk = self._selected_clock()
+        old_clk, self._clk = self._clk, self._selected_clock()
         self._load = self.value["LOAD"] & 0xFFFFFF
         if not running:
             self._t0 = None
             return
         per = self._clk.period
-        self._t0 = edge if edge is not None else (self.kernel.now // per) * per
+        # count on the selected clock's own edges: after a CLKSOURCE change (or from stopped) that
+        # is the new clock's last edge <= now, not the old clock's (which would count the new
+        # clock's cycles from an instant before the switch, or off its edges)
+        same = edge is not None and self._clk is old_clk
+        self._t0 = edge if same else (self.kernel.now // per) * per
         first = self._val0 if self._val0 else self._load + 1  # cycles until VAL next reaches 0
         if self._load or self._val0:
             self._schedule(self._t0 + first * per)
