@@ -302,3 +302,17 @@ def test_exact_voltage_refuses_what_is_not_a_finite_number():
     for v in (float("nan"), float("inf"), float("-inf")):
         with pytest.raises(McusimError, match="not a finite number"):
             exact_voltage(v)
+
+
+@pytest.mark.parametrize("refs", [0b01, 0b11])
+def test_internal_reference_options_are_refused_while_an_external_voltage_is_on_aref(refs):
+    # ADMUX REFS1:0 (datasheet 8271 §24.9.1): "The internal voltage reference options may not be
+    # used if an external reference voltage is being applied to the AREF pin" (AVcc or the 1.1 V
+    # reference would be shorted to it through the AREF pin).
+    mcu, _adc, _nets = make((1.0,), aref=3.3)
+    init(mcu)
+    with pytest.raises(UnsupportedConfiguration) as e:
+        mcu.write8(ADMUX, refs << 6)
+    assert e.value.register == "ADMUX" and e.value.field == "REFS" and "AREF" in str(e.value)
+    assert mcu.read8(ADMUX) == 0x00              # the refused write left ADMUX as it was
+    mcu.write8(ADMUX, 0x00)                      # REFS = 00 (AREF) stays allowed

@@ -38,7 +38,9 @@ Modelled
 * References: REFS = 01 AVcc (``avcc``), 11 internal 1.1 V, 00 AREF only if an ``aref`` voltage is
   given (else UnsupportedConfiguration); 10 is reserved and raises. Channels: 0-7 from ``inputs``
   (a channel without an AnalogNet raises), 14 = 1.1 V bandgap, 15 = GND; 8 (temperature sensor)
-  and the reserved 9-13 raise. The checks run when a conversion is requested or starts.
+  and the reserved 9-13 raise. The checks run when a conversion is requested or starts, except
+  one: with an ``aref`` voltage, writing REFS = 01 or 11 raises at the ADMUX write (the datasheet
+  forbids the internal references while an external voltage is on AREF).
 
 Not modelled: auto-trigger sources other than free running, ADC noise reduction sleep mode, PRR.PRADC,
 the analog comparator multiplexer (ACME), the bandgap settling time, INL/DNL/offset errors.
@@ -179,6 +181,15 @@ class Adc(Peripheral):
         self._check_trigger(self.value["ADCSRA"], new)
 
     def _write_admux(self, old, new):
+        refs = new >> 6
+        if self.aref is not None and refs in (1, 3):
+            # §24.9.1: the internal reference options may not be used while an external voltage
+            # is applied to AREF (the selected reference is switched onto the AREF pin). Refused
+            # at the ADMUX write, where the selection is made, not at the next conversion.
+            name = "AVcc" if refs == 1 else "internal 1.1 V"
+            raise UnsupportedConfiguration(self.name, "ADMUX", "REFS", refs,
+                                           f"({name}) would be shorted to the external {self.aref} V "
+                                           "on AREF: with an aref voltage only REFS = 00 is allowed")
         if self._busy and self._admux_latched is None and self.kernel.now >= self._t_start:
             self._admux_latched = old
 
