@@ -184,7 +184,10 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "avr-adc", "mcusim.periph.avr.adc:Adc", _P(
         inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
         avcc=_num(5.0, min=1.8, max=5.5, unit="V"), vector=_vec(21, "ADC conversion complete"),
-        aref=_num(5.0, above=0, max=5.5, unit="V", doc="external reference on AREF")),
+        # none by default, as the model's (the Pro Mini's AREF pin carries only a capacitor): with
+        # a voltage on it the datasheet forbids the internal references (ADMUX.REFS = 01, 11)
+        aref=Param(None, kind=float, above=0, max=5.5, unit="V",
+                   doc="external reference voltage on AREF (none: REFS = 00 is refused; with one, REFS = 01 and 11 are)")),
         "ATmega328P 10-bit ADC", needs=("clock",)),
     Kind("peripheral", "avr-twi", "mcusim.periph.avr.twi:Twi", _P(bus=_BUSNAME, vector=_vec(24, "TWI")),
          "ATmega328P TWI (I2C slave)", needs=("clock",)),

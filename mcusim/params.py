@@ -167,7 +167,7 @@ class Param:
                 list: "list"}.get(self.kind, self.kind.__name__)
         rng = self.range_text()
         default = (fmt_number(self.default) if isinstance(self.default, (int, float)) else
-                   "none" if self.default == "" else ", ".join(map(fmt_number, self.default))
+                   "none" if self.default in ("", None) else ", ".join(map(fmt_number, self.default))
                    if isinstance(self.default, (tuple, list)) else self.default)
         parts = [kind, "required" if self.required else f"default {default}"] + ([rng] if rng else [])
         return ", ".join(parts) + (f": {self.doc}" if self.doc else "")
