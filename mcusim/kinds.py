@@ -146,6 +146,14 @@ PERIPHERALS = {k.name: k for k in (
          "STM32F7 flash interface: ACR (wait states, ART), as start-up code writes it", needs=("base",)),
     Kind("peripheral", "stm32-pwr", "mcusim.periph.stm32.sysctl:Pwr", {},
          "STM32F7 power controller: CR1/CSR1 (regulator scale, over-drive and their ready flags)", needs=("base",)),
+    Kind("peripheral", "stm32-dbgmcu", "mcusim.periph.stm32.sysctl:DbgMcu", {},
+         "STM32F7 debug MCU registers: IDCODE (device and revision), CR and the APB freeze bits, stored",
+         needs=("base",)),
+    Kind("peripheral", "stm32-devid", "mcusim.periph.stm32.sysctl:DeviceId", _P(
+        uid=Param((0x0020001F, 0x3236510E, 0x33363138), length=3, items=Param(0, min=0, max=0xFFFFFFFF),
+                  doc="the 96-bit unique ID, UID0-UID2"),
+        flash_kb=Param(1024, min=1, max=0xFFFF, doc="flash size in Kbytes")),
+         "STM32F7 device electronic signature: unique ID and flash size (read only)", needs=("base",)),
     Kind("peripheral", "stm32-tim", "mcusim.periph.stm32.tim:Tim", _P(
         irqs=_Table(("brk", "update", "trg_com", "cc"), _IRQ, doc="NVIC lines of the timer's events"),
         counter_bits=Param(16, choices=(16, 32), doc="counter width"),

@@ -1,5 +1,6 @@
 """The Cortex-M system registers startup and HAL code touch, for a compiled image: SCB (CPUID,
-ICSR, VTOR, AIRCR, SCR, CCR, SHPR1-3, SHCSR, fault status, CPACR), the FPU's FPCCR, STIR,
+ICSR, VTOR, AIRCR, SCR, CCR, SHPR1-3, SHCSR, fault status, the cache identification registers,
+CPACR), the FPU's FPCCR, STIR,
 CoreDebug DEMCR and the DWT cycle counter (Armv7-M ARM B3.2, C1.8; the Cortex-M7 and -M4 TRMs
 for the reset values).
 
@@ -18,6 +19,19 @@ from ..irq import PENDSV, SYSTICK
 from ..registers import Field, Peripheral, Register
 
 CPUID = {"cortex-m7": 0x411FC270, "cortex-m4": 0x410FC241}
+#: Cortex-M7 with 4 KB two-way instruction and 4 KB four-way data caches of 32-byte lines (the
+#: STM32F74x/75x configuration, RM0385 §2.1): CLIDR (level 1 separate instruction and data caches,
+#: LoUU = LoC = 1) and CTR (32-byte lines) as the Cortex-M7 TRM gives them. A Cortex-M4 has no
+#: caches: they read 0 there.
+CACHES = {"cortex-m7": (0x09000003, 0x8303C003, (4096, 2), (4096, 4))}
+
+
+def ccsidr(size_bytes: int, ways: int, line_bytes: int = 32) -> int:
+    """CCSIDR of a cache of ``size_bytes`` in ``ways`` ways of ``line_bytes`` lines: WT, WB, RA and
+    WA set (the TRM's values for the data cache; for the instruction cache an inference: CMSIS
+    reads only the sets, ways and line size), sets − 1, ways − 1, log2(words per line) − 2."""
+    sets = size_bytes // (ways * line_bytes)
+    return (0xF << 28) | ((sets - 1) << 13) | ((ways - 1) << 3) | ((line_bytes // 4).bit_length() - 3)
 _SHCSR_ACT = {4: 0, 5: 1, 6: 3, 11: 7, 12: 8, 14: 10, 15: 11}        # exception number: xxxACT bit
 _SHCSR_PENDED = {6: 12, 4: 13, 5: 14, 11: 15}
 
@@ -55,8 +69,15 @@ class CoreScb(Peripheral):
             Field("USGFAULTENA", 18))),
         Register("CFSR", 0x28, access="rc_w1"),
         Register("HFSR", 0x2C, access="rc_w1"),
+        Register("DFSR", 0x30, access="rc_w1"),
         Register("MMFAR", 0x34),
         Register("BFAR", 0x38),
+        Register("AFSR", 0x3C),
+        # which cache CCSIDR describes: CSSELR.InD = 1 the instruction cache; only level 1 exists
+        Register("CLIDR", 0x78, access="r"),
+        Register("CTR", 0x7C, access="r"),
+        Register("CCSIDR", 0x80, access="r", on_read="_read_ccsidr"),
+        Register("CSSELR", 0x84, fields=(Field("InD", 0), Field("Level", 1, 3))),
         Register("CPACR", 0x88, fields=(Field("CP10", 20, 2), Field("CP11", 22, 2))),
     )
 
@@ -65,6 +86,13 @@ class CoreScb(Peripheral):
         self.nvic, self.exc = nvic, exc_model
         self.value["CPUID"] = CPUID.get(kind, CPUID["cortex-m4"])
         self.value["VTOR"] = exc_model.vtor
+        clidr, ctr, icache, dcache = CACHES.get(kind, (0, 0, None, None))
+        self.value["CLIDR"], self.value["CTR"] = clidr, ctr
+        self._ccsidr = {1: ccsidr(*icache), 0: ccsidr(*dcache)} if icache else {1: 0, 0: 0}
+
+    def _read_ccsidr(self, stored):
+        sel = self.value["CSSELR"]
+        return self._ccsidr[sel & 1] if (sel >> 1) & 7 == 0 else 0
 
     def _read_icsr(self, stored):
         exc = self.exc

@@ -26,9 +26,11 @@ def attach_memories(bus, memories) -> None:
 
 
 def build_core(profile: dict, mcu, image, memories):
-    """The unicorn core, the SCB/DWT/FPU/STIR/CoreDebug registers; returns the core."""
+    """The unicorn core, the SCB/DWT/FPU/STIR/CoreDebug/MPU/ITM registers (and the Cortex-M7's
+    cache maintenance operations); returns the core."""
     from .core import CortexMCore
     from .scb import CoreDebug, CoreScb, Dwt, Fpu, Stir
+    from .scs_extra import CacheMaintenance, Itm, Mpu, ScnScb
     core_spec = profile["core"]
     kind = core_spec.get("kind", "cortex-m4")
     boot = core_spec.get("boot_address", 0)
@@ -46,6 +48,11 @@ def build_core(profile: dict, mcu, image, memories):
     bus.attach(0xE000EF00, Stir(mcu.nvic))
     bus.attach(0xE000EF30, fpu)
     bus.attach(0xE0001000, dwt)
+    bus.attach(0xE0000000, Itm("ITM"))
+    bus.attach(0xE000E000, ScnScb(core_spec.get("nvic_irqs", 98)))
+    bus.attach(0xE000ED90, Mpu())
+    if kind == "cortex-m7":
+        bus.attach(0xE000EF50, CacheMaintenance("CACHE"))
     core = CortexMCore(mcu, image, memories, kind=kind, cpi=core_spec.get("cycles_per_instruction", 1),
                        entry_latency=core_spec.get("entry_latency", 12),
                        boot_address=boot)
