@@ -96,6 +96,9 @@ class Simulation:
         ``stop()``, if given, is checked after every event; the run ends at the event that makes it
         true (``mcusim.testing.wait_until`` is built on it)."""
         if self._over is not None:
+            if self._over.startswith("stopped"):
+                raise McusimError(f"run(): this simulation {self._over}, so it cannot run on (load the "
+                                  "board again)")
             raise McusimError(f"run(): this simulation was {self._over}: its firmware's tasks are ended, "
                               "so it cannot run on (load the board again)")
         if stop is not None and not callable(stop):
@@ -127,6 +130,12 @@ class Simulation:
         t0 = _wall.perf_counter()
         try:
             self.kernel.run_until(end, stop=stop)
+        except McusimError as exc:
+            # a fault of the firmware or a refused register configuration stops the run inside an
+            # event: the core and the models are left where it happened, not at a state a later
+            # run could go on from (a faulted core would run on as if dead)
+            self._over = self._over or f"stopped at t = {self.time_s:.9f} s on an error ({exc})"
+            raise
         finally:
             self.wall_s += _wall.perf_counter() - t0
         for tr in self._traces:

@@ -304,6 +304,19 @@ def test_after_a_fault_the_simulation_stands_at_the_faulting_instruction():
     assert said > 0 and sim.time_s == pytest.approx(said, abs=1e-9)
 
 
+def test_a_simulation_stopped_by_a_fault_refuses_to_run_on():
+    """A second run() after a HardFault returned normally and moved time on with a dead core
+    (found by an adversarial test of ELF images)."""
+    from mcusim.errors import McusimError
+    sim = load("faults", overrides={"/which": 1})
+    with pytest.raises(CoreFault):
+        sim.run(seconds="1ms")
+    stood = sim.time_s
+    with pytest.raises(McusimError, match=r"stopped at t = 0\.0000\d+ s on an error \(HardFault.*cannot run on"):
+        sim.run(seconds="0.5s")
+    assert sim.time_s == stood
+
+
 # --- the images match their sources ------------------------------------------------------------------
 @pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
 @pytest.mark.parametrize("name", IMAGES)

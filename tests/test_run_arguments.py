@@ -91,6 +91,22 @@ def test_a_quoted_set_value_is_the_text_inside_the_quotes(text, quote):
     assert parse_value(f"{quote}{text}{quote}") == text
 
 
+def test_a_simulation_stopped_by_a_refused_register_configuration_refuses_to_run_on(tmp_path):
+    """An error raised inside an event leaves the models where it happened: run() goes no further
+    (an ADC whose sketch selects AVcc while a voltage is on AREF, ATmega328P datasheet ADMUX)."""
+    import mcusim
+    from mcusim.board import shipped_text
+    from mcusim.errors import McusimError, UnsupportedConfiguration
+    text = shipped_text("pro-mini").replace('name = "ADC"\n', 'name = "ADC"\naref = 3.0\n', 1)
+    prof = tmp_path / "aref.toml"
+    prof.write_text(text)
+    sim = mcusim.load(str(prof))
+    with pytest.raises(UnsupportedConfiguration, match="REFS"):
+        sim.run(seconds="50ms")
+    with pytest.raises(McusimError, match="stopped at t = .* on an error .*REFS.*cannot run on"):
+        sim.run(seconds="1ms")
+
+
 def test_a_closed_or_discarded_simulation_refuses_to_run_on():
     """Ran on silently after close(), with its firmware's tasks already ended."""
     import mcusim
