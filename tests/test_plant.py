@@ -1,6 +1,6 @@
-"""Plant physics: DC motor, L6206 bridge, quadrature encoder (the plant notes §1–3, §5).
+"""Plant physics: DC motor, L6206 bridge, quadrature encoder (docs/plants.md §1–3, §5).
 
-Every expected value is computed here from the sheet's equations (closed-form algebra, scipy's
+Every expected value is computed here from the equations of docs/plants.md (closed-form algebra, scipy's
 ODE solver or matrix exponential), never copied from the model's output.
 """
 
@@ -326,7 +326,7 @@ def test_encoder_counts_through_reversal():
 
 @pytest.mark.parametrize("cpr", [1, 2, 10, 63, 2047])
 def test_encoder_counts_per_rev_is_four_per_disc_cycle_so_other_counts_raise_naming_it(cpr):
-    # the plant notes §3.1: A and B make n_cyc cycles per revolution, C4 = 4·n_cyc counts; a count
+    # docs/plants.md §3.1: A and B make n_cyc cycles per revolution, C4 = 4·n_cyc counts; a count
     # that is not a multiple of 4 is no quadrature disc (the A/B state at θ and θ + 2π would differ)
     k = Kernel(TimeBase([FS]))
     m = DcMotor(k, "m")

@@ -1,6 +1,6 @@
-"""Lead-acid bank (the plant notes §4, §4.1) and the BTS7960 supply coupling (§2.1, §2.3, §5.1).
+"""Lead-acid bank (docs/plants.md §4, §4.1) and the BTS7960 supply coupling (§2.1, §2.3, §5.1).
 
-Expected values come from the sheet's equations (the Thevenin ECM, OCV ≈ 11.65 + 1.10·SOC, the
+Expected values come from the equations of docs/plants.md (the Thevenin ECM, OCV ≈ 11.65 + 1.10·SOC, the
 motor/bridge steady state) or from an independent numerical integration, never from the model's
 own output.
 """

@@ -1,7 +1,7 @@
 """IBT-2 (2 × BTS7960) bridge, the 100 W OpenRover motor preset and the AMT10 encoder
-(the plant notes §0, §1.4, §2.1, §2.3, §3.2, §5.2).
+(docs/plants.md §0, §1.4, §2.1, §2.3, §3.2, §5.2).
 
-Every expected value is computed here from the sheet's equations (closed-form algebra or scipy's
+Every expected value is computed here from the equations of docs/plants.md (closed-form algebra or scipy's
 matrix exponential), never copied from the model's output.
 """
 
@@ -83,7 +83,7 @@ def test_pololu_preset_equals_the_motor_defaults_and_openrover_preset_matches_th
     # loaded rover, §1.4: 12.5 kg at r = 0.195 m plus a 2 kg disc wheel, reflected through 50²
     assert p.J_eq == pytest.approx(1.2e-4 + (12.5 + 1.0) * 0.195 ** 2 / 50 ** 2, rel=1e-3)
     assert 3.2e-4 < p.J_eq < 3.4e-4
-    # the sheet's recommended row: no-load ≈ 2,279 rpm, stall ≈ 75 A at 12 V (motor alone)
+    # the recommended row of §1.4: no-load ≈ 2,279 rpm, stall ≈ 75 A at 12 V (motor alone)
     assert steady(12.0, p.R)[1] * 60 / (2 * math.pi) == pytest.approx(2279, rel=2e-3)
     assert 12.0 / p.R == pytest.approx(75.0)
 
@@ -175,7 +175,7 @@ def test_locked_rotor_stall_current_at_12V_is_supply_over_motor_plus_both_r_on()
 def test_no_load_speed_from_a_hard_start_equals_the_analytic_steady_state():
     i_ss, w_ss = steady()
     s = rig(pins=(1, 0))
-    s.k.run_until(round(0.6 * FS))                # τ ≈ 26 ms for the loaded rover (§1.6)
+    s.k.run_until(round(0.6 * FS))                # τ ≈ 21 ms for the loaded rover (§1.6)
     assert s.m.speed == pytest.approx(w_ss, rel=1e-7)
     assert s.m.current == pytest.approx(i_ss, rel=1e-6)
     rpm = w_ss * 60 / (2 * math.pi)

@@ -179,7 +179,7 @@ def test_rolling_resistance_is_crr_m_g_over_n_per_wheel_against_the_rotation_and
     k.run_until(2 * MS)
     f_roll = 0.03 * M * G / 4                                       # 3.7 N per wheel: 0.72 N·m at the wheel
     assert R * f_roll == pytest.approx(0.717, abs=1e-3)
-    assert R * f_roll / (P.gear_ratio * P.efficiency) == pytest.approx(0.018, abs=1e-3)   # §1.4 "≈20 mN·m"
+    assert R * f_roll / (P.gear_ratio * P.efficiency) == pytest.approx(0.018, abs=1e-3)   # docs/plants.md §1.4 "≈20 mN·m"
     for wh in wheels:
         assert wh.params.load_torque == pytest.approx(math.copysign(R * f_roll, wh.w) * math.tanh(R * 2.0 / 0.01))
     k, wheels, _body = kin_rover([0.0] * 4)
@@ -190,7 +190,7 @@ def test_rolling_resistance_is_crr_m_g_over_n_per_wheel_against_the_rotation_and
 def test_inertia_split_sets_each_motor_load_inertia_and_the_implied_yaw_inertia_is_reported():
     _, wheels, body = kin_rover([0.0] * 4)
     j_w = (M / 4) * R ** 2 + 0.5 * 2.0 * R ** 2
-    assert j_w == pytest.approx(motor_preset(PRESET)["load_inertia"], rel=1e-3)   # §1.4 value
+    assert j_w == pytest.approx(motor_preset(PRESET)["load_inertia"], rel=1e-3)   # docs/plants.md §1.4 value
     assert all(wh.params.load_inertia == pytest.approx(j_w, rel=1e-12) for wh in wheels)
     assert body.yaw_inertia_implied == pytest.approx(M * (1.5 * B / 2) ** 2) == pytest.approx(8.51, abs=0.01)
     assert body.yaw_inertia == pytest.approx(M * (L_WB ** 2 + B ** 2) / 12) == pytest.approx(2.10, abs=0.01)

@@ -1,5 +1,5 @@
 """Lead-acid battery bank feeding the motor bridges, and the controller's battery divider
-(the plant notes §4, §4.1, §5.1 "Battery coupling").
+(docs/plants.md §4, §4.1, §5.1 "Battery coupling").
 
 Model: ``count`` identical 12 V 9 Ah sealed lead-acid (VRLA/AGM) batteries in parallel, each a
 first-order Thevenin equivalent circuit (§4; the classic ECM of PyBaMM's "Thevenin" model and the
@@ -10,7 +10,7 @@ first-order Thevenin equivalent circuit (§4; the classic ECM of PyBaMM's "Theve
     v_t     = OCV(SOC) − v1 − (R0/n + R_wiring)·I
 
 with perfect current sharing between the n batteries (§4.1: "R0/n, n·Q"). Parameters (all per
-battery; the sheet's provenance marks):
+battery; provenance marks as in docs/plants.md):
 
 - OCV(SOC) = ocv_empty + (ocv_full − ocv_empty)·SOC = 11.65 + 1.10·SOC V: the linear fit of the
   recommended AGM/SLA table of §4.1 (11.65 / 11.95 / 12.20 / 12.45 / 12.75 V at 0…100 %) [I].

@@ -1,4 +1,4 @@
-"""IBT-2 motor driver board: two Infineon BTS7960 half bridges (the plant notes §2.1, §2.3).
+"""IBT-2 motor driver board: two Infineon BTS7960 half bridges (docs/plants.md §2.1, §2.3).
 
 Wiring: half bridge R (pins RPWM = IN, R_EN = INH, R_IS) drives M+, half bridge L (LPWM, L_EN,
 L_IS) drives M−. The motor current i flows M+ -> motor -> M− (i > 0 for RPWM=1, LPWM=0).
@@ -12,14 +12,14 @@ Leg model as :mod:`mcusim.plant.l6206` (§2.1; current j out of the leg): H: v =
 L: v = −R_LS·j; Z: v = −(V_D + r_D·j) for j > 0 (low-side diode), Vs + V_D − r_D·j for j < 0
 (high-side diode). The bridge hands ``(V⁺, V⁻, R_br, has_diode)`` to the motor.
 
-Current limitation (datasheet §4.3.7–4.3.9 as quoted in §2.3 / §5.2 item 7): each switch senses
+Current limitation (datasheet §4.3.7–4.3.9; docs/plants.md §2.3 / §5.2 item 7): each switch senses
 its own *forward* current — high side: current out of the leg, j > I_CLH; low side: current into
 the leg, −j > I_CLL (reverse conduction is not detected [I]). On detection the half bridge is in
 current-limitation fault for ``t_CLS`` (rounded to the nearest base tick): the detecting switch is
 turned off and, by default (``cl_action="other"``), the *other* switch of that half bridge is
 turned on, ignoring IN [S/I: the datasheet's current-limitation text as remembered, and the truth
 table of the sibling NovalithIC BTM7752G: "short circuit in HS detected -> HS OFF, LS ON"; the
-sheet itself only says "the switch is shut off for t_CLS"]. ``cl_action="off"`` turns both switches
+datasheet figures only say "the switch is shut off for t_CLS"]. ``cl_action="off"`` turns both switches
 off instead (leg Z). INH low still turns the half bridge off during the fault. After t_CLS the
 half bridge follows IN again; if the current is still above the limit it trips again at once.
 With an inductive load this is the switched-mode current limit of §2.3. The detection is a guard
@@ -39,7 +39,7 @@ Overtemperature: there is no thermal model, so the shutdown is an injected fault
 and its IS pin shows the fault current I_IS(lim) until the latch is reset by an INH low pulse or by
 ``clear_overtemperature(side)`` (cooled down) [§2.3: thermal shutdown latched, reset via INH].
 
-Supply coupling (battery, the plant notes §4, §5.1 "Battery coupling"): ``params.Vs`` is the bus voltage
+Supply coupling (battery, docs/plants.md §4, §5.1 "Battery coupling"): ``params.Vs`` is the bus voltage
 B+ − B−. Alone the bridge treats it as an ideal source; a :class:`mcusim.plant.battery.LeadAcidBank`
 connected to it calls :meth:`Bts7960Bridge.set_supply` once per battery step (the held bus voltage,
 piecewise constant) and reads :meth:`Bts7960Bridge.supply_charge`, the charge drawn from B+ since
@@ -93,14 +93,14 @@ class Bts7960Params:
     R_HS: float = 7e-3        # high-side R_ON, Ω (25 °C typ; max 9, 150 °C 10/12.5) [V]
     R_LS: float = 9e-3        # low-side R_ON, Ω (25 °C typ; max 12, 150 °C 14/18)   [V]
     V_D: float = 0.8          # reverse-diode forward voltage, V (25 °C typ, 9 A)  [V]
-    r_D: float = 0.0          # diode slope, Ω (not in the sheet)                  [I]
+    r_D: float = 0.0          # diode slope, Ω (not in the datasheet)              [I]
     I_CLH: float = 60.0       # high-side current-limit detection, A (44/60/80)    [V]
     I_CLL: float = 43.0       # low-side current-limit detection, A (34/43/61)     [V]
     t_CLS: float = 115e-6     # current-limit shut-off time, s (70/115/210 µs)     [V]
     k_ILIS: float = 8500.0    # current sense ratio I_L/I_IS (typ; spread 3000–14000) [V]
     R_IS: float = 1000.0      # IS resistor on the IBT-2, Ω: UNVERIFIED (assumed)  [S]
     I_IS_lim: float = 4.5e-3  # max analog sense current = fault current, A (4/4.5/7 mA) [V]
-    I_ISL: float = 0.0        # IS leakage with IN or INH = 0, A (sheet: ≤ 1 µA)   [V max]
+    I_ISL: float = 0.0        # IS leakage with IN or INH = 0, A (datasheet: ≤ 1 µA) [V max]
     I_ISH: float = 0.0        # IS offset with the high side on at I_L = 0, A (≤ 200 µA) [V max]
     Vcc: float = 5.0          # logic supply: IS voltage clamp, V                  [S: IBT-2 VCC 5 V]
 

@@ -1,6 +1,6 @@
 """Brushed DC motor + gearbox + load, simulated exactly between events (ARCHITECTURE invariant 4).
 
-Physics (the plant notes §1.1), all on the motor shaft::
+Physics (docs/plants.md §1.1), all on the motor shaft::
 
     L·di/dt   = v_m − R·i − K·ω
     J_eq·dω/dt = K·i − b·ω − τc·sgn ω − τ_L,m          J_eq = J + load_inertia/N²
@@ -16,7 +16,7 @@ Physics (the plant notes §1.1), all on the motor shaft::
 - The terminal voltage comes from a *driver* (an H-bridge, see :mod:`mcusim.plant.l6206`) as an
   affine law per current-sign domain: ``v_m = V⁺ − R_br·i`` for i > 0 and ``V⁻ − R_br·i`` for
   i < 0 (the two differ only when a leg conducts through a diode). At i = 0 in a diode state the
-  clamp test of §2.1 decides: grow positive if ``V⁺ − K·ω > 0``, negative if ``V⁻ − K·ω < 0``,
+  clamp test of docs/plants.md §2.1 decides: grow positive if ``V⁺ − K·ω > 0``, negative if ``V⁻ − K·ω < 0``,
   otherwise discontinuous conduction (i ≡ 0, terminals float at E = K·ω). With no driver the
   terminals are open (i ≡ 0 forever).
 
@@ -74,7 +74,7 @@ def _check_overrides(cls, overrides: dict, what: str):
 
 @dataclass(frozen=True)
 class MotorParams:
-    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (the plant notes §1.3)."""
+    """Motor + gearbox + load. Defaults: Pololu 37D 12 V 30:1 with 64 CPR encoder (docs/plants.md §1.3)."""
 
     R: float = 2.18            # armature resistance, Ω
     L: float = 1.5e-3          # armature inductance, H
@@ -84,7 +84,7 @@ class MotorParams:
     b: float = 6.3e-7          # viscous friction, N·m·s/rad (motor shaft)
     tau_s: float = 5.0e-3      # stiction (breakaway) torque, N·m (motor shaft)
     gear_ratio: float = 30.0   # N = ω_motor / ω_output
-    efficiency: float = 0.78   # η (second estimate of §1.3 for 30:1)
+    efficiency: float = 0.78   # η (η₂ of docs/plants.md §1.3 for 30:1)
     load_inertia: float = 0.0  # kg·m² on the output shaft
     load_torque: float = 0.0   # N·m on the output shaft, against positive rotation
 

@@ -1,4 +1,4 @@
-"""Quadrature encoder disc on the motor shaft (the plant notes §3).
+"""Quadrature encoder disc on the motor shaft (docs/plants.md §3).
 
 ``counts_per_rev`` (C4) is the ×4 count per motor revolution (64 for the Pololu 37D: do not
 multiply by 4 again). Threshold k sits at θ = k·2π/C4 on the motor shaft; the encoder position is
@@ -10,7 +10,7 @@ The two thresholds around the current position are guards of the motor's segment
 the trajectory and the scheduling): crossing up fires at the first tick t with θ(t) ≥ (k+1)·2π/C4,
 crossing down at the first tick with θ(t) < k·2π/C4. The edge is set on the nets at that tick,
 during the motor's plant event (``PRIO_PLANT``). No per-edge error pattern δ_k, jitter or
-hysteresis is modelled (the sheet's [I] options); edges are ideal.
+hysteresis is modelled (the [I] options of docs/plants.md §3.1); edges are ideal.
 
 Lazy counting (fast engine): where the decoder reading the outputs can compute its count from the
 shaft angle (an STM32 timer in encoder mode, ``lazy_enter`` in :mod:`mcusim.periph.stm32.tim_lazy`)

@@ -5,7 +5,7 @@ Two contacts [I: the usual E-stop wiring; the rover's actual wiring is not docum
 - an NC contact in series with the motor-enable line, from the controller's enable output
   (``enable_in``) to the bridges' enable inputs (``enable_out``: the IBT-2 R_EN/L_EN = BTS7960 INH
   pins). Released, the contact is closed and ``enable_out`` follows ``enable_in``; pressed, it is
-  open and the IBT-2's pull-downs on its inputs (74HC244 buffer with pull-downs, the plant notes §2.3) pull
+  open and the IBT-2's pull-downs on its inputs (74HC244 buffer with pull-downs, docs/plants.md §2.3) pull
   the line low: the button model drives 0 on ``enable_out`` as driver ``name`` for them. So the
   motors lose drive (INH low: both switches off, coast) even if the firmware keeps enable high.
 - a second (NO) contact from the controller's ``sense`` input to ground. The board's pull-up holds

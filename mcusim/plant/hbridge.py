@@ -1,4 +1,4 @@
-"""The general MOSFET leg model of the plant notes §2.1, shared by the L6206 and BTS7960 bridges.
+"""The general MOSFET leg model of docs/plants.md §2.1, shared by the L6206 and BTS7960 bridges.
 
 Each leg is H (high side on), L (low side on) or Z (both off: the body diodes conduct). For a
 current j flowing out of the leg, its voltage is ``c − r·j`` with (c, r) from :meth:`_leg`; the

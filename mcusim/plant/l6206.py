@@ -1,4 +1,4 @@
-"""One full bridge of an ST L6206, as on the X-NUCLEO-IHM04A1 (the plant notes §2.1–2.2).
+"""One full bridge of an ST L6206, as on the X-NUCLEO-IHM04A1 (docs/plants.md §2.1–2.2).
 
 Truth table (EN, IN1, IN2 -> OUT1, OUT2): EN=0 -> Z Z (all off: fast decay through the body
 diodes, then discontinuous conduction); EN=1: 10 -> H L (drive +), 01 -> L H (drive −),

@@ -1,5 +1,5 @@
-"""Skid-steer (or differential-drive) rover body coupled to its wheel motors (the plant notes
-§1.4 "Vehicle"; kinematics after Mandow et al. 2007, turning resistance after Wong).
+"""Skid-steer (or differential-drive) rover body coupled to its wheel motors (docs/plants.md
+§1.4 "Vehicle", §1.5; kinematics after Mandow et al. 2007, turning resistance after Wong).
 
 Frame (REP 103, as :mod:`mcusim.fw.openrover_rcm.kinematics`): x forward, y to the left, yaw
 counter-clockwise positive. Wheel i belongs to side ``sides[i]`` ("L"/"R"); ``directions[i]``
@@ -11,7 +11,7 @@ Model (a documented approximation; values without a source are [I]):
    inertia: ``load_inertia = (mass/n)·r² + ½·wheel_mass·r²`` (mass: whole vehicle, translating;
    wheel_mass: a solid-disc wheel spinning), set on every motor at construction, *overriding* the
    motor's preset value (which is the same number for the default 50 kg / 4 wheels / 2 kg /
-   0.195 m: the plant notes §1.4). The body has no state of its own: its motion follows the wheels.
+   0.195 m: docs/plants.md §1.4). The body has no state of its own: its motion follows the wheels.
 2. **Kinematics** (ICR model of Mandow et al. 2007, "Experimental kinematics for skid-steer mobile
    robots", IROS, symmetric case): with ω̄_L, ω̄_R the mean forward output speeds of a side's wheels,
    ``v = r·(ω̄_L + ω̄_R)/2`` and ``ω_z = r·(ω̄_R − ω̄_L)/(χ·track)``. χ ≥ 1 is the ICR expansion
@@ -32,7 +32,7 @@ Model (a documented approximation; values without a source are [I]):
    and *with* it on the left wheels for ω_z > 0 (a left turn has to push the right side forward
    and hold the left side back). The wheels thus supply χ·M_r·ω_z of power in a turn: M_r·ω_z for
    the lateral sliding and (χ−1)·M_r·ω_z for the longitudinal slip the ICR expansion implies.
-4. **Rolling resistance** ``crr·m·g/n`` per wheel (Crr 0.03, the plant notes §1.4 [I]), against the
+4. **Rolling resistance** ``crr·m·g/n`` per wheel (Crr 0.03, docs/plants.md §1.4 [I]), against the
    wheel's rotation through ``tanh(r·ω_i/v_ε)`` with v_ε = ``speed_eps`` = 0.01 m/s.
 5. **Coupling in time.** The load torques are recomputed every ``step`` (1 ms, a ``PRIO_PLANT``
    kernel event) from the wheel speeds at that instant and held constant in between (applied with
