@@ -182,6 +182,17 @@ def test_a_bad_topic_map_value_is_a_config_error(tmp_path, capsys, body, message
     assert "Traceback" not in capsys.readouterr().err
 
 
+@pytest.mark.skipif(shutil.which("arm-none-eabi-strip") is None, reason="arm-none-eabi-strip is not installed")
+def test_a_topic_map_for_a_stripped_image_says_the_symbol_table_is_missing(tmp_path):
+    # found by an adversarial test: it said the ELF had no symbol 'set_point', as if misspelt
+    import subprocess
+    shutil.copy(BIN / "ticks.elf", tmp_path / "app.elf")
+    shutil.copy(BIN / "ticks.topics.toml", tmp_path / "app.topics.toml")
+    subprocess.run(["arm-none-eabi-strip", str(tmp_path / "app.elf")], check=True)
+    with pytest.raises(ConfigError, match="no symbol table \\(stripped\\?\\)"):
+        mcusim.load("nucleo-f746", firmware=str(tmp_path / "app.elf"))
+
+
 # --- review finding 14: the bench's command comes from the profile: the error says so ----------------------
 def test_bench_with_an_image_lacking_the_profiles_topics_names_the_bench_set_table(tmp_path, capsys):
     shutil.copy(BIN / "ticks.elf", tmp_path / "my.elf")

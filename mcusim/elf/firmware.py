@@ -80,6 +80,9 @@ def read_topic_map(elf_path: str, image) -> dict:
         if spec["direction"] not in ("sub", "pub"):
             raise ConfigError(f"{where}: topic {name}: direction {spec['direction']!r}: expected sub or pub")
         sym = spec["symbol"]
+        if not image.symbols:
+            raise ConfigError(f"{where}: topic {name}: the ELF has no symbol table (stripped?), so its "
+                              f"symbol {sym!r} cannot be found: give the unstripped image")
         if sym not in image.symbols:
             raise ConfigError(f"{where}: topic {name}: the ELF has no symbol {sym!r}")
         size = struct.calcsize(TYPES[spec["type"]])

@@ -21,6 +21,7 @@ class Segment:
     address: int        # load (physical) address: where the bytes sit at reset
     data: bytes         # the file's bytes, padded with zeros to p_memsz
     executable: bool
+    sections: tuple = ()    # the names of the allocated sections it holds (.text, .data ...)
 
 
 @dataclass
@@ -127,7 +128,9 @@ def read_elf(path) -> ElfImage:
             data = seg.data()
             if seg["p_filesz"] == 0:
                 continue            # .bss-like: zeroed by the startup code, nothing to load
-            segments.append(Segment(seg["p_paddr"], bytes(data), bool(seg["p_flags"] & PF_X)))
+            names = tuple(sec.name for sec in elf.iter_sections()
+                          if sec["sh_flags"] & 2 and sec["sh_size"] and seg.section_in_segment(sec))
+            segments.append(Segment(seg["p_paddr"], bytes(data), bool(seg["p_flags"] & PF_X), names))
         if not segments:
             raise ConfigError(f"{where}: the ELF has no loadable segment (PT_LOAD with contents)")
         image = ElfImage(where, elf["e_entry"], segments)
