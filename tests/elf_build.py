@@ -13,7 +13,9 @@ from pathlib import Path
 
 SRC = Path(__file__).parent / "elf_src"
 BIN = Path(__file__).parent / "elf_bin"
-IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "sched", "masks", "lpc_ticks", "armv7m")
+IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "sched", "masks", "lpc_ticks", "armv7m",
+          "corefaults", "itcm")
+LINK = {"itcm": "link_itcm.ld"}   # the linker script of an image that needs its own
 COMMON = ["-mthumb", "-O2", "-g", "-ffreestanding", "-nostartfiles", "-nostdlib", "-Wl,--gc-sections",
           "-Wl,--build-id=none", "-ffile-prefix-map=" + str(SRC) + "=."]
 STM32F746 = ["-mcpu=cortex-m7", "-mfpu=fpv5-sp-d16", "-mfloat-abi=hard", "-T", "link.ld"]
@@ -27,6 +29,8 @@ def gcc():
 def build(name: str, out_dir: Path) -> Path:
     out = Path(out_dir) / f"{name}.elf"
     chip = LPC4337 if name.startswith("lpc_") else STM32F746
+    if name in LINK:
+        chip = [*chip[:-1], LINK[name]]
     subprocess.run([gcc(), *COMMON, *chip, "startup.c", f"{name}.c", "-o", str(out.resolve()), "-lgcc"],
                    cwd=SRC, check=True, capture_output=True)
     topics = SRC / f"{name}.topics.toml"

@@ -68,12 +68,24 @@ INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 
 
 _CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
-    3: "prefetch abort (a branch to an address with no code)",
     4: "data abort",
     17: "no coprocessor (a floating-point instruction with the FPU disabled)",
     18: "invalid state (a branch to an address with bit 0 clear: ARM state does not exist on Cortex-M)",
     19: "invalid PC on exception return",
 }
+
+
+# Armv7-M ARM B3.1, the default memory map: regions that are Execute Never
+_XN_REGIONS = ((0x40000000, 0x60000000, "Peripheral"), (0xA0000000, 0xE0000000, "Device"),
+               (0xE0000000, 1 << 32, "System"))
+
+
+def _fetch_fault(address) -> str:
+    for lo, hi, name in _XN_REGIONS:
+        if lo <= address < hi:
+            return (f"instruction fetch from {address:#010x}, in the {name} region, which is Execute Never "
+                    "(a MemManage fault on the chip)")
+    return f"instruction fetch from {address:#010x}, where there is no code (prefetch abort)"
 
 
 class CoreFault(McusimError):
@@ -314,7 +326,7 @@ class CortexMCore:
         """Run up to n instructions from t0; return how many retired."""
         uc = self.uc
         self._q_t0, self._q_limit = t0, limit
-        self._q_base, self._blk_addr, self._blk_n = 0, None, 0
+        self._q_base, self._blk_addr, self._blk_n, self._blk_size = 0, None, 0, 0
         self._in_emu = True
         self._check = False
         self._quantum += 1
@@ -337,15 +349,15 @@ class CortexMCore:
                 # unicorn ends the run on YIELD and WFE (QEMU's EXCP_YIELD, reported as an invalid
                 # instruction) with PC past them: both are valid hints that retire
                 err, self._stop = None, ((hint,) if hint == "wfe" else None)
-                return self._q_base + self._index(self._blk_addr, pc)
+                return self._retired_to(pc)
         if err is not None and (stop is None or stop[0] != "fault"):
             self._stop = ("fault", pc, self._uc_error_text(err, pc))
-            return self._q_base + self._index(self._blk_addr, pc)
+            return self._retired_to(pc)
         if stop is not None and stop[0] == "exc_return":
             return self._q_base + self._blk_n
         if stop is not None and stop[0] == "fault":
-            return self._q_base + self._index(self._blk_addr, stop[1])
-        retired = self._q_base + self._index(self._blk_addr, pc) if self._blk_addr is not None else 0
+            return self._retired_to(stop[1])
+        retired = self._retired_to(pc)
         if stop is None and (self._wfi_at == pc - 2 or (retired < n and self._halfword(pc - 2) == 0xBF30)):
             self._stop = ("wfi",)          # (the second test: a WFI in code the image copied to RAM)
         if stop is not None and stop[0] == "replay":
@@ -355,7 +367,7 @@ class CortexMCore:
             self._replay = list(stop[1])
             self._in_emu = self._replaying = True
             self._q_t0 = t0 + retired * self.step_ticks
-            self._q_base, self._blk_addr, self._blk_n = 0, None, 0
+            self._q_base, self._blk_addr, self._blk_n, self._blk_size = 0, None, 0, 0
             self._quantum += 1
             try:
                 uc.emu_start(pc | 1, 0, count=1)
@@ -405,12 +417,20 @@ class CortexMCore:
             self._blocks[addr] = offs = tuple(offs)
         return bisect.bisect_left(offs, pc - addr)
 
+    def _retired_to(self, pc) -> int:
+        """Instructions of this emu_start retired when the next one is at pc: in the current block,
+        those before pc; anywhere else (a fetch that failed after the block's branch), the block."""
+        a = self._blk_addr
+        if a is not None and not a <= pc <= a + self._blk_size:
+            return self._q_base + self._blk_n
+        return self._q_base + self._index(a, pc)
+
     def _on_block(self, uc, address, size, _):
         n = self._blk_n_cache.get((address, size))
         if n is None:
             n = self._blk_n_cache[(address, size)] = self._index(address, address + size)
         self._q_base += self._blk_n
-        self._blk_addr, self._blk_n = address, n
+        self._blk_addr, self._blk_n, self._blk_size = address, n, size
 
     _ACCESS: ClassVar[dict] = {UC_MEM_READ_UNMAPPED: "read of unmapped", UC_MEM_WRITE_UNMAPPED: "write to unmapped",
                UC_MEM_FETCH_UNMAPPED: "instruction fetch from unmapped", UC_MEM_WRITE_PROT: "write to read-only"}
@@ -448,6 +468,8 @@ class CortexMCore:
             self._stop = ("fault", pc, "undefined instruction")
         elif intno == 7:                         # EXCP_BKPT
             self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, "BKPT with no debugger attached")
+        elif intno == 3:                         # EXCP_PREFETCH_ABORT: PC is the failed fetch
+            self._stop = ("fault", pc, _fetch_fault(pc))
         else:
             self._stop = ("fault", pc, _CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
         uc.emu_stop()
@@ -458,7 +480,7 @@ class CortexMCore:
         if self._replaying and self._replay:   # the replayed instruction's recorded accesses
             return self._replay.pop(0)[2]
         pc = uc.reg_read(A.UC_ARM_REG_PC)
-        index = self._q_base + self._index(self._blk_addr, pc)
+        index = self._retired_to(pc)
         key = (self._quantum, index)
         if key != self._acc_key:               # a new instruction: a new record of its accesses
             self._acc_pc, self._acc, self._acc_key = pc, [], key

@@ -1,0 +1,40 @@
+"""Faults of the instruction stream and of device accesses, with tests/elf_src/corefaults.c (a call
+through the pointer `target` the host sets, or an unaligned peripheral access, chosen by `which`)
+and tests/elf_src/itcm.c. References: Armv7-M Architecture Reference Manual (ARM DDI 0403E) B3.1
+(the default memory map: which regions are Execute Never), A7.3.1 and B1.4.2 (EPSR.T, INVSTATE),
+A3.2.1 (unaligned accesses); Cortex-M7 TRM (unaligned accesses to Device memory fault)."""
+
+from __future__ import annotations
+
+import pytest
+from elf_build import BIN
+
+import mcusim
+from mcusim.elf.core import CoreFault
+
+
+def run(which, target=0, seconds="50us", image="corefaults"):
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / f"{image}.elf"),
+                      overrides={"/which": which, "/target": target} if image == "corefaults" else {})
+    sim.run(seconds=seconds)
+    return sim
+
+
+def fault(which, target=0, seconds="50us"):
+    with pytest.raises(CoreFault) as info:
+        run(which, target, seconds)
+    return str(info.value)
+
+
+# --- B3.1: Peripheral, Device and System regions are Execute Never ------------------------------------
+@pytest.mark.parametrize("target, region", [(0x40000401, "Peripheral"), (0xE000E011, "System"),
+                                            (0xA0000001, "Device")])
+def test_a_branch_into_an_execute_never_region_is_a_fault_at_the_fetch_address(target, region):
+    text = fault(1, target)
+    assert f"instruction fetch from {target - 1:#010x}, in the {region} region" in text
+    assert "Execute Never" in text and f"at PC {target - 1:#010x}" in text
+
+
+def test_a_branch_to_an_address_with_no_memory_is_a_fault_at_the_fetch_address():
+    text = fault(1, 0x60000001)
+    assert "instruction fetch from unmapped memory at 0x60000000" in text and "at PC 0x60000000" in text
