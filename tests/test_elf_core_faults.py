@@ -38,3 +38,16 @@ def test_a_branch_into_an_execute_never_region_is_a_fault_at_the_fetch_address(t
 def test_a_branch_to_an_address_with_no_memory_is_a_fault_at_the_fetch_address():
     text = fault(1, 0x60000001)
     assert "instruction fetch from unmapped memory at 0x60000000" in text and "at PC 0x60000000" in text
+
+
+# --- B3.1: code may run from any executable memory, address 0 (the ITCM RAM) included -------------------
+def test_code_in_itcm_ram_at_address_0_runs():
+    sim = run(0, image="itcm")
+    assert sim.mcu.cpu.state == "sleep"
+    assert sim.mcu.read32(sim.firmware.symbols["calls"]) == 3
+    assert sim.firmware.symbols["fast"] & ~1 == 0
+
+
+def test_a_branch_to_an_address_with_no_memory_near_0_is_a_fault_at_that_address():
+    text = fault(1, 0x00004001)
+    assert "instruction fetch from unmapped memory at 0x00004000" in text and "at PC 0x00004000" in text

@@ -64,6 +64,9 @@ from .exceptions import ExceptionModel
 from .memory import PAGE
 
 MAX_QUANTUM = 1 << 20          # instructions per emu_start at most (the kernel regains control)
+# emu_start's "until" address: one no Thumb instruction can have (0 would stop code at address 0,
+# the ITCM RAM of a Cortex-M7, before its first instruction)
+NO_UNTIL = 0xFFFFFFFF
 INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 
 
@@ -333,7 +336,7 @@ class CortexMCore:
         self._wfi_at = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         try:
-            uc.emu_start(pc | 1, 0, count=n)
+            uc.emu_start(pc | 1, NO_UNTIL, count=n)
             err = None
         except UcError as exc:
             err = exc
@@ -370,7 +373,7 @@ class CortexMCore:
             self._q_base, self._blk_addr, self._blk_n, self._blk_size = 0, None, 0, 0
             self._quantum += 1
             try:
-                uc.emu_start(pc | 1, 0, count=1)
+                uc.emu_start(pc | 1, NO_UNTIL, count=1)
             except UcError as exc:
                 self._stop = ("fault", pc, self._uc_error_text(exc, pc))
             finally:
