@@ -14,7 +14,7 @@ from pathlib import Path
 SRC = Path(__file__).parent / "elf_src"
 BIN = Path(__file__).parent / "elf_bin"
 IMAGES = ("ticks", "exc", "fpframe", "rtos", "faults", "cycles", "order", "sched", "masks", "lpc_ticks", "armv7m",
-          "corefaults", "itcm")
+          "corefaults", "itcm", "idle")
 LINK = {"itcm": "link_itcm.ld"}   # the linker script of an image that needs its own
 COMMON = ["-mthumb", "-O2", "-g", "-ffreestanding", "-nostartfiles", "-nostdlib", "-Wl,--gc-sections",
           "-Wl,--build-id=none", "-ffile-prefix-map=" + str(SRC) + "=."]

@@ -19,6 +19,8 @@ takes it when the architecture says so. How it runs:
 * **WFI** ends ``emu_start``; the core sleeps (no kernel event at all) until the NVIC reports an
   interrupt that can wake it. A code hook on each WFI of the image tells a WFI that is the
   quantum's last instruction from a quantum that simply ran out.
+* **Idle loops**: at a branch to itself the quantum's remaining instructions retire at once
+  (:mod:`mcusim.elf.idle`), with the same count and times as spinning them.
 * **WFE, YIELD, SEV**: unicorn ends the run on WFE and YIELD (reported as an invalid
   instruction, PC past them) and runs SEV as a NOP (a code hook sets the event register). WFE
   consumes a set event register, else sleeps as WFI.
@@ -60,6 +62,7 @@ from unicorn.unicorn_const import (
 
 from ..errors import ConfigError, McusimError
 from ..kernel import PRIO_CPU
+from . import idle
 from .exceptions import ExceptionModel
 from .memory import PAGE
 
@@ -124,6 +127,9 @@ class CortexMCore:
         self._load(image)
         self._map_peripherals()
         uc.hook_add(UC_HOOK_BLOCK, self._on_block)
+        self._idle = idle.self_branches(image.segments)
+        for addr in sorted(self._idle):      # a branch to itself: fast-forward (after _on_block)
+            uc.hook_add(UC_HOOK_BLOCK, self._on_idle, begin=addr, end=addr)
         for addr in sorted(self._unmask):    # after an instruction that may unmask: take what is pending
             uc.hook_add(UC_HOOK_CODE, self._on_unmask, begin=addr, end=addr)
         for addr in sorted(self._wfi):       # a WFI about to execute (even as a quantum's last instruction)
@@ -297,7 +303,8 @@ class CortexMCore:
             return
         if self.debug is not None:
             n = self.debug.budget(n)
-        retired = self._emulate(t0, n, limit)
+        # at a branch to itself the quantum spins to its end (mcusim.elf.idle)
+        retired = n if idle.spinning(self, self.pc) else self._emulate(t0, n, limit)
         self.instructions += retired
         self.cpu_time = t = t0 + retired * self.step_ticks
         self.kernel.now = t0
@@ -346,6 +353,9 @@ class CortexMCore:
                 self.debug._skip_bp = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         stop = self._stop
+        if err is None and stop == ("idle",):
+            self._stop = None
+            return n                        # reached a branch to itself: it spins to the end
         if err is not None and stop is None and err.errno == UC_ERR_INSN_INVALID:
             hint = {0xBF10: "yield", 0xBF20: "wfe"}.get(self._halfword(pc - 2))
             if hint is not None:
@@ -447,6 +457,12 @@ class CortexMCore:
             self._stop = ("fault", address if access == UC_MEM_FETCH_UNMAPPED else pc,
                           f"{8 * size}-bit {what} memory at {address:#010x}{extra}")
         return False
+
+    def _on_idle(self, uc, address, size, _):
+        if size == self._idle[address] and self._stop is None and not self._replaying \
+                and idle.spinning(self, address):
+            self._stop = ("idle",)
+            uc.emu_stop()
 
     def _on_wfi(self, uc, address, size, _):
         self._wfi_at = address

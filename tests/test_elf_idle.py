@@ -1,0 +1,60 @@
+"""The core's fast-forward through idle loops (mcusim.elf.idle): at a branch to itself it retires
+the rest of the quantum at once instead of spinning it instruction by instruction. The results
+must be the same as spinning, byte for byte: every interrupt entered at the same tick (the DWT
+CYCCNT each SysTick handler reads is in the register log), the same pin edges in the VCD, the same
+instruction count. tests/elf_src/idle.c; its `/which` topic chooses the loop."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from elf_build import BIN
+
+import mcusim
+from mcusim.cli import main
+from mcusim.elf import idle
+
+
+def run_cli(tmp_path, which, skip, monkeypatch, duration="3ms"):
+    monkeypatch.setattr(idle, "IDLE_SKIP", skip)
+    log, vcd = tmp_path / f"regs{which}{skip}.jsonl", tmp_path / f"wave{which}{skip}.vcd"
+    assert main(["run", "nucleo-f746", "--firmware", str(BIN / "idle.elf"), "--set", f"/which={which}",
+                 "--duration", duration, "-q", "--register-log", str(log), "--vcd", str(vcd)]) == 0
+    return log.read_bytes(), vcd.read_bytes()
+
+
+@pytest.mark.parametrize("which", [1, 2, 3, 4])
+def test_idle_skip_gives_the_same_register_log_and_vcd_as_spinning(tmp_path, which, monkeypatch):
+    on, off = run_cli(tmp_path, which, True, monkeypatch), run_cli(tmp_path, which, False, monkeypatch)
+    assert on[0] == off[0] and on[1] == off[1]
+    assert on[0].count(b"SysTick_Handler") >= (0 if which == 2 else 25)   # the handlers did run
+
+
+@pytest.mark.parametrize("which", [1, 2, 3, 4])
+def test_idle_skip_retires_the_same_instructions_at_the_same_time(which, monkeypatch):
+    seen, skips, spinning = [], [], idle.spinning
+    monkeypatch.setattr(idle, "spinning", lambda core, pc: spinning(core, pc) and not skips.append(pc))
+    for skip in (True, False):
+        monkeypatch.setattr(idle, "IDLE_SKIP", skip)
+        sim = mcusim.load("nucleo-f746", firmware=str(BIN / "idle.elf"), overrides={"/which": which})
+        sim.run(seconds="2ms")
+        cpu, syms = sim.mcu.cpu, sim.firmware.symbols
+        seen.append((cpu.instructions, cpu.cpu_time, cpu.pc, cpu.busy_ticks, cpu.read(syms["stamp"], 256),
+                     sim.mcu.read32(syms["ticks"]), sim.mcu.read32(syms["tim2_count"]), dict(cpu.isr_count)))
+        sim.close()
+    assert seen[0] == seen[1]
+    assert len(skips) > 10                         # the fast-forward did run (the first time)
+    ticks, tim2 = seen[0][5], seen[0][6]
+    assert (ticks, tim2) == ((0, 0) if which == 2 else (19, 0 if which == 4 else 8))
+
+
+def test_idle_skip_makes_an_idle_loop_cheap(monkeypatch):
+    """PRIMASK set, nothing can wake the core: 100 ms of `b .` (21.6 million instructions) is a
+    few quanta, not 21.6 million block hooks."""
+    monkeypatch.setattr(idle, "IDLE_SKIP", True)
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "idle.elf"), overrides={"/which": 2})
+    start = time.perf_counter()
+    sim.run(seconds="100ms")
+    assert time.perf_counter() - start < 5
+    assert sim.mcu.cpu.instructions > 21_000_000
