@@ -51,3 +51,17 @@ def test_code_in_itcm_ram_at_address_0_runs():
 def test_a_branch_to_an_address_with_no_memory_near_0_is_a_fault_at_that_address():
     text = fault(1, 0x00004001)
     assert "instruction fetch from unmapped memory at 0x00004000" in text and "at PC 0x00004000" in text
+
+
+# --- running off the end of a memory: the fault is the fetch where the memory ends ----------------------
+def test_a_call_to_address_0_runs_what_the_itcm_ram_holds_and_faults_at_its_end():
+    """A call to 0x00000001 (Thumb, address 0): the ITCM RAM holds zeros (MOVS r0, r0), the core
+    runs them up to the end of the 16 KB, where the fetch from no memory is the fault, naming that
+    address. (A call through a NULL pointer is another fault: bit 0 clear, see below.)"""
+    text = fault(1, 1, seconds="200us")
+    assert "instruction fetch from unmapped memory at 0x00004000" in text and "at PC 0x00004000" in text
+
+
+def test_running_off_the_end_of_the_flash_is_a_fault_at_the_first_address_past_it():
+    text = fault(1, 0x080FFF01)
+    assert "instruction fetch from unmapped memory at 0x08100000" in text and "at PC 0x08100000" in text

@@ -422,7 +422,11 @@ class CortexMCore:
             return 0
         offs = self._blocks.get(addr)
         if offs is None or (offs and pc > addr + offs[-1]):
-            data = bytes(self.uc.mem_read(addr, max(pc - addr, 0) + 4))
+            span = max(pc - addr, 0)
+            try:
+                data = bytes(self.uc.mem_read(addr, span + 4))
+            except UcError:                  # the block ends where a memory ends
+                data = bytes(self.uc.mem_read(addr, span))
             offs, i = [], 0
             while i < len(data) - 1:
                 offs.append(i)
