@@ -65,3 +65,19 @@ def test_a_call_to_address_0_runs_what_the_itcm_ram_holds_and_faults_at_its_end(
 def test_running_off_the_end_of_the_flash_is_a_fault_at_the_first_address_past_it():
     text = fault(1, 0x080FFF01)
     assert "instruction fetch from unmapped memory at 0x08100000" in text and "at PC 0x08100000" in text
+
+
+# --- A7.3.1, B1.4.2: a branch with bit 0 clear clears EPSR.T; the next instruction is an INVSTATE fault --
+@pytest.mark.parametrize("target", ["landing", 0x20000000, 0])
+def test_a_branch_to_an_even_address_is_an_invalid_state_fault_naming_the_caller(target):
+    """Bit 0 clear: to a function's own address, to RAM, and a call through a NULL pointer (which
+    on a Cortex-M is this fault, whatever memory is at 0)."""
+    if isinstance(target, str):
+        sim = mcusim.load("nucleo-f746", firmware=str(BIN / "corefaults.elf"))
+        target = sim.firmware.symbols[target]
+        sim.close()
+    address = target & ~1
+    text = fault(1, address)
+    assert "invalid state" in text and "INVSTATE" in text and f"at PC {address:#010x}" in text
+    assert "(call_target+0x" in text                     # LR: the caller, after its BLX
+    assert "undefined instruction" not in text

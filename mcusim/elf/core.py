@@ -76,7 +76,8 @@ INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 _CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
     4: "data abort",
     17: "no coprocessor (a floating-point instruction with the FPU disabled)",
-    18: "invalid state (a branch to an address with bit 0 clear: ARM state does not exist on Cortex-M)",
+    18: "invalid state (a branch to an address with bit 0 clear: EPSR.T = 0, ARM state does not exist "
+        "on Cortex-M; an INVSTATE UsageFault on the chip)",
     19: "invalid PC on exception return",
 }
 
@@ -342,6 +343,10 @@ class CortexMCore:
         self._quantum += 1
         self._wfi_at = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
+        if not self._thumb():                # a BX to an even address was a quantum's last instruction
+            self._stop = ("fault", pc, self._invstate(pc))
+            self._in_emu = False
+            return 0
         try:
             uc.emu_start(pc | 1, NO_UNTIL, count=n)
             err = None
@@ -363,6 +368,9 @@ class CortexMCore:
                 # instruction) with PC past them: both are valid hints that retire
                 err, self._stop = None, ((hint,) if hint == "wfe" else None)
                 return self._retired_to(pc)
+        if err is not None and stop is None and not self._thumb():
+            self._stop = ("fault", pc, self._invstate(pc))        # EPSR.T = 0: INVSTATE
+            return self._retired_to(pc)
         if err is not None and (stop is None or stop[0] != "fault"):
             self._stop = ("fault", pc, self._uc_error_text(err, pc))
             return self._retired_to(pc)
@@ -391,6 +399,14 @@ class CortexMCore:
                 self._replay = []
             retired += 1
         return retired
+
+    def _thumb(self) -> bool:
+        return bool(self.uc.reg_read(A.UC_ARM_REG_XPSR) >> 24 & 1)
+
+    def _invstate(self, pc) -> str:
+        lr = self.uc.reg_read(A.UC_ARM_REG_LR)
+        return (f"{_CPU_EXCEPTIONS[18]}; branched to {pc:#010x}, LR {lr:#010x} "
+                f"({self.where(lr & ~1)}, after the call if it was one)")
 
     def _halfword(self, address):
         try:
@@ -560,4 +576,6 @@ class CortexMCore:
         return self.uc.reg_read(getattr(A, f"UC_ARM_REG_{name.upper()}"))
 
     def set_reg(self, name: str, value: int) -> None:
+        if name.lower() == "pc":           # unicorn takes EPSR.T from bit 0 of a PC write: keep it
+            value = (value & ~1) | self._thumb()
         self.uc.reg_write(getattr(A, f"UC_ARM_REG_{name.upper()}"), value)

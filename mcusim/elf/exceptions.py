@@ -90,7 +90,7 @@ class ExceptionModel:
         uc = self.uc
         uc.reg_write(A.UC_ARM_REG_CONTROL, 0)
         uc.reg_write(A.UC_ARM_REG_MSP, sp & ~3)
-        uc.reg_write(A.UC_ARM_REG_PC, pc & ~1)
+        uc.reg_write(A.UC_ARM_REG_PC, pc)      # (bit 0 set: unicorn takes EPSR.T from it)
         self.reset_sp, self.reset_pc = sp & ~3, pc & ~1
 
     # --- priorities ------------------------------------------------------------------------------
@@ -217,7 +217,7 @@ class ExceptionModel:
         if not vector & 1 or core._region(vector & ~1, 2)[0] is None:
             self._fault(f"exception {exc} has no valid vector at VTOR {self.vtor:#010x} + {4 * exc:#x} "
                         f"({vector:#010x})", t)
-        uc.reg_write(A.UC_ARM_REG_PC, vector & ~1)
+        uc.reg_write(A.UC_ARM_REG_PC, vector)  # bit 0 (set) is EPSR.T for unicorn
         self.active.append(exc)
         irqn = exc - 16
         self.nvic.acknowledge(irqn)
@@ -283,4 +283,4 @@ class ExceptionModel:
         new_sp = (sp + size + (4 if xpsr & (1 << 9) else 0)) & 0xFFFFFFFF
         control = (control & ~6) | (4 if fp else 0) | (2 if (thread and use_psp) else 0)
         self._return_out[use_psp].write((*words[:6], control & ~3, new_sp, xpsr & ~(1 << 9), xpsr & 0xF8000000,
-                                         control, words[6] & ~1))
+                                         control, (words[6] & ~1) | (xpsr >> 24 & 1)))  # EPSR.T: the frame's
