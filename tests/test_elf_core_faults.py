@@ -81,3 +81,18 @@ def test_a_branch_to_an_even_address_is_an_invalid_state_fault_naming_the_caller
     assert "invalid state" in text and "INVSTATE" in text and f"at PC {address:#010x}" in text
     assert "(call_target+0x" in text                     # LR: the caller, after its BLX
     assert "undefined instruction" not in text
+
+
+# --- A3.2.1: unaligned accesses to Device memory fault (Cortex-M7 TRM); not split into two ------------
+@pytest.mark.parametrize("which, what, function", [(2, "unaligned 32-bit read of 0x40000402 (TIM3)", "unaligned_read"),
+                                                   (3, "unaligned 16-bit write to 0x40000405 (TIM3)", "unaligned_write")])
+def test_an_unaligned_peripheral_access_is_a_fault_naming_address_size_and_block(which, what, function, tmp_path):
+    from mcusim.reglog import load_logged
+    path = tmp_path / "regs.jsonl"
+    sim, _ = load_logged("nucleo-f746", str(path), firmware=str(BIN / "corefaults.elf"),
+                         overrides={"/which": which})
+    with pytest.raises(CoreFault) as info:
+        sim.run(seconds="50us")
+    sim.close()
+    assert what in str(info.value) and f"({function}+0x" in str(info.value)
+    assert "TIM3" not in path.read_text()              # no register of the block was accessed

@@ -48,10 +48,13 @@ from unicorn.unicorn_const import (
     UC_HOOK_INTR,
     UC_HOOK_MEM_FETCH_UNMAPPED,
     UC_HOOK_MEM_PROT,
+    UC_HOOK_MEM_READ,
     UC_HOOK_MEM_READ_UNMAPPED,
+    UC_HOOK_MEM_WRITE,
     UC_HOOK_MEM_WRITE_UNMAPPED,
     UC_MEM_FETCH_UNMAPPED,
     UC_MEM_READ_UNMAPPED,
+    UC_MEM_WRITE,
     UC_MEM_WRITE_PROT,
     UC_MEM_WRITE_UNMAPPED,
     UC_MODE_THUMB,
@@ -235,6 +238,9 @@ class CortexMCore:
         for first, end in runs:
             base = first * PAGE
             self.uc.mmio_map(base, (end - first) * PAGE, self._mmio_read, base, self._mmio_write, base)
+            # unicorn splits an unaligned access into aligned ones before _mmio sees it: refuse it here
+            self.uc.hook_add(UC_HOOK_MEM_READ | UC_HOOK_MEM_WRITE, self._on_device_access,
+                             begin=base, end=end * PAGE - 1)
 
     # --- symbols -----------------------------------------------------------------------------
     def where(self, pc=None) -> str:
@@ -482,6 +488,16 @@ class CortexMCore:
         if size == self._idle[address] and self._stop is None and not self._replaying \
                 and idle.spinning(self, address):
             self._stop = ("idle",)
+            uc.emu_stop()
+
+    def _on_device_access(self, uc, access, address, size, value, _):
+        if address % size and self._stop is None:     # Armv7-M A3.2.1; the Cortex-M7 faults it
+            hit = self.bus.peripheral_at(address & ~3)
+            block = hit[0].name if hit is not None else "no register block"
+            op = "write to" if access == UC_MEM_WRITE else "read of"
+            what = (f"unaligned {8 * size}-bit {op} {address:#010x} ({block}): peripheral and system "
+                    "registers take aligned accesses only (an UNALIGNED UsageFault on the chip)")
+            self._stop = ("fault", uc.reg_read(A.UC_ARM_REG_PC), what)
             uc.emu_stop()
 
     def _on_wfi(self, uc, address, size, _):
