@@ -340,6 +340,76 @@ def test_ciaa_edu_runs_an_image_linked_for_its_flash_through_the_boot_shadow():
     assert sim.mcu.read32(0xE000ED00) == 0x410FC241                 # a Cortex-M4
 
 
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+def test_an_image_too_big_for_the_flash_names_its_sections_and_the_overflow(tmp_path):
+    """Found by an adversarial test: a 1.1 MB constant table was 'a loadable segment ... outside
+    the board's memory', naming neither the sections nor by how much the 1 MB flash overflows."""
+    import subprocess
+
+    from elf_build import COMMON, SRC, STM32F746
+    (tmp_path / "big.c").write_text("const unsigned char table[1100000] = {1};\n"
+                                    "volatile unsigned sink;\n"
+                                    "int main(void) { sink = table[sink]; for (;;) {} }\n")
+    # linked for a chip with 2 Mbytes of flash (an F767ZI's), so the linker lets it through
+    (tmp_path / "link.ld").write_text((SRC / "link.ld").read_text().replace("LENGTH = 1024K", "LENGTH = 2048K"))
+    flags = [str(tmp_path / "link.ld") if f == "link.ld" else f for f in STM32F746]
+    out = tmp_path / "big.elf"
+    subprocess.run([gcc(), *COMMON, *flags, "startup.c", str(tmp_path / "big.c"), "-o", str(out), "-lgcc"],
+                   cwd=SRC, check=True, capture_output=True)
+    with pytest.raises(ConfigError, match=r"segment \(.*\.text.*\) at 0x08000000 \(\d+ bytes\) overflows "
+                                          r"the board's memory by \d+ bytes.*ends at 0x080fffff") as info:
+        mcusim.load("nucleo-f746", firmware=str(out))
+    size = int(str(info.value).split("(")[2].split(" bytes")[0])
+    over = int(str(info.value).split("by ")[1].split(" bytes")[0])
+    assert over == size - 0x100000                      # the F746ZG's flash: 1 Mbyte
+
+
+RAMCODE = """
+#include <stdint.h>
+#define REG(a) (*(volatile uint32_t *)(a))
+volatile uint32_t sink, order[4], n;
+void IRQ0_Handler(void) { order[n++] = 0xAA; }
+/* copied to RAM by the start-up code with .data (the segment is read-write only) */
+__attribute__((section(".data"), noinline, long_call)) void ram_sev_wfe(void) {
+  __asm volatile("sev\\n wfe");
+  sink = 1;
+}
+__attribute__((section(".data"), noinline, long_call)) void ram_unmask(void) {
+  __asm volatile("cpsie i" ::: "memory");
+  order[n++] = 1;
+}
+int main(void) {
+  ram_sev_wfe();
+  __asm volatile("cpsid i");
+  REG(0xE000E100) = 1;        /* ISER0: IRQ0 */
+  REG(0xE000E200) = 1;        /* ISPR0: pend IRQ0 */
+  ram_unmask();
+  order[n++] = 2;
+  for (;;) __asm volatile("wfi");
+}
+"""
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+def test_sev_wfe_and_cpsie_in_code_copied_to_ram_act_as_in_flash(tmp_path):
+    """Found by an adversarial test: the core found SEV, WFI and CPSIE by scanning the image at its
+    load addresses only, so in a function copied to RAM `sev; wfe` slept (the WFE goes on at once
+    after an SEV, B1.5.18) and an interrupt pended under PRIMASK waited past `cpsie i` (it is
+    taken right after it, B1.5.4 and the Cortex-M7 TRM)."""
+    import subprocess
+
+    from elf_build import COMMON, SRC, STM32F746
+    (tmp_path / "ram.c").write_text(RAMCODE)
+    out = tmp_path / "ram.elf"
+    subprocess.run([gcc(), *COMMON, *STM32F746, "startup.c", str(tmp_path / "ram.c"), "-o", str(out), "-lgcc"],
+                   cwd=SRC, check=True, capture_output=True)
+    sim = mcusim.load("nucleo-f746", firmware=str(out))
+    sim.run(seconds="1ms")
+    syms = sim.firmware.symbols
+    assert sim.mcu.read32(syms["sink"]) == 1
+    assert [sim.mcu.read32(syms["order"] + 4 * k) for k in range(3)] == [0xAA, 1, 2]
+
+
 def test_a_system_profile_refuses_an_elf():
     with pytest.raises(ConfigError, match="system runs its boards' own firmware"):
         mcusim.load("elementall", firmware=elf("ticks"))

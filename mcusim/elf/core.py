@@ -197,9 +197,7 @@ class CortexMCore:
     def _load(self, image):
         for seg in image.segments:
             if not self._covered(seg.address, len(seg.data), ("ram", "flash")):
-                names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
-                raise ConfigError(f"{image.path}: a loadable segment at {seg.address:#010x} "
-                                  f"({len(seg.data)} bytes) lies outside the board's memory ({names})")
+                raise ConfigError(self._outside(image, seg))
             pos = 0
             while pos < len(seg.data):               # region by region (a segment may span two)
                 m, off = self._region(seg.address + pos, 1)
@@ -208,20 +206,42 @@ class CortexMCore:
                 pos += n
         self._wfi, self._sev, self._unmask = set(), set(), set()
         for seg in image.segments:          # WFI: where the core sleeps; CPSIE/MSR: may unmask
-            if not seg.executable:
+            if not seg.code_addresses:
                 continue
             d = seg.data
             for i in range(0, len(d) - 1, 2):
                 hw = d[i] | d[i + 1] << 8
-                if hw == 0xBF30:
-                    self._wfi.add(seg.address + i)
-                elif hw == 0xBF40:
-                    self._sev.add(seg.address + i)
-                elif hw & 0xFFF8 == 0xB660:                        # CPSIE i/f
-                    self._unmask.add(seg.address + i + 2)
-                elif hw & 0xFFF0 == 0xF380 and i + 3 < len(d) and (d[i + 2] | d[i + 3] << 8) in (
-                        0x8810, 0x8811, 0x8812, 0x8813):           # MSR PRIMASK/BASEPRI(_MAX)/FAULTMASK
-                    self._unmask.add(seg.address + i + 4)
+                # at the load address and, for code the start-up copies to RAM, where it runs (a
+                # match in data never runs: its hook never fires)
+                for base in seg.code_addresses:
+                    if hw == 0xBF30:
+                        self._wfi.add(base + i)
+                    elif hw == 0xBF40:
+                        self._sev.add(base + i)
+                    elif hw & 0xFFF8 == 0xB660:                        # CPSIE i/f
+                        self._unmask.add(base + i + 2)
+                    elif hw & 0xFFF0 == 0xF380 and i + 3 < len(d) and (d[i + 2] | d[i + 3] << 8) in (
+                            0x8810, 0x8811, 0x8812, 0x8813):           # MSR PRIMASK/BASEPRI(_MAX)/FAULTMASK
+                        self._unmask.add(base + i + 4)
+
+    def _outside(self, image, seg) -> str:
+        """What a loadable segment that does not fit the board's memory overflows, in the user's
+        terms: its sections, and by how many bytes it runs past the memory it starts in."""
+        what = f" ({', '.join(seg.sections)})" if seg.sections else ""
+        start, size = seg.address, len(seg.data)
+        m, off = self._region(start, 1)
+        if m is None:
+            names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
+            return (f"{image.path}: a loadable segment{what} at {start:#010x} ({size} bytes) lies outside "
+                    f"the board's memory ({names})")
+        end = start - off + m.size
+        m, off = self._region(end, 1)
+        while m is not None:        # (memories that follow each other, as DTCM and SRAM1, are one span)
+            end += m.size - off
+            m, off = self._region(end, 1)
+        return (f"{image.path}: a loadable segment{what} at {start:#010x} ({size} bytes) overflows the "
+                f"board's memory by {start + size - end} bytes: it runs to {start + size - 1:#010x}, the "
+                f"memory from {start:#010x} ends at {end - 1:#010x}")
 
     def _map_peripherals(self):
         pages = set()

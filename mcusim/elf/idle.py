@@ -31,14 +31,15 @@ def self_branches(segments) -> dict[int, int]:
     """Address -> length of each branch to itself in the executable segments."""
     found = {}
     for seg in segments:
-        if not seg.executable:
+        if not seg.code_addresses:
             continue
         d = seg.data
         for code in (_T2, _T4):
             i = d.find(code)
             while i >= 0:
                 if i % 2 == 0:
-                    found[seg.address + i] = len(code)
+                    for base in seg.code_addresses:
+                        found[base + i] = len(code)
                 i = d.find(code, i + 1)
     return found
 

@@ -22,6 +22,15 @@ class Segment:
     data: bytes         # the file's bytes, padded with zeros to p_memsz
     executable: bool
     sections: tuple = ()    # the names of the allocated sections it holds (.text, .data ...)
+    vaddr: int | None = None    # where it runs, if not where it is loaded (code copied to RAM)
+
+    @property
+    def code_addresses(self) -> tuple:
+        """Where its bytes may run as code: the load address of an executable segment, and the
+        run address of any segment the start-up code copies elsewhere (a function placed in .data
+        runs from RAM, although the linker marks that segment read-write only)."""
+        at = (self.address,) if self.executable else ()
+        return at if self.vaddr in (None, self.address) else at + (self.vaddr,)
 
 
 @dataclass
@@ -130,7 +139,8 @@ def read_elf(path) -> ElfImage:
                 continue            # .bss-like: zeroed by the startup code, nothing to load
             names = tuple(sec.name for sec in elf.iter_sections()
                           if sec["sh_flags"] & 2 and sec["sh_size"] and seg.section_in_segment(sec))
-            segments.append(Segment(seg["p_paddr"], bytes(data), bool(seg["p_flags"] & PF_X), names))
+            segments.append(Segment(seg["p_paddr"], bytes(data), bool(seg["p_flags"] & PF_X), names,
+                                    seg["p_vaddr"]))
         if not segments:
             raise ConfigError(f"{where}: the ELF has no loadable segment (PT_LOAD with contents)")
         image = ElfImage(where, elf["e_entry"], segments)
