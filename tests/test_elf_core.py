@@ -131,7 +131,7 @@ def test_no_loadable_segment_is_one_clear_error(tmp_path):
 
 
 def test_segment_outside_the_boards_memory_is_one_clear_error():
-    with pytest.raises(ConfigError, match="segment at 0x08000000.*outside the board's memory"):
+    with pytest.raises(ConfigError, match="segment \\(.*\\) at 0x08000000.*outside the board's memory"):
         load("ticks", board="ciaa-edu")
 
 
