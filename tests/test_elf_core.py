@@ -410,6 +410,22 @@ def test_sev_wfe_and_cpsie_in_code_copied_to_ram_act_as_in_flash(tmp_path):
     assert [sim.mcu.read32(syms["order"] + 4 * k) for k in range(3)] == [0xAA, 1, 2]
 
 
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+def test_a_semihosting_call_without_a_debugger_is_named_as_such(tmp_path):
+    """BKPT 0xAB is Arm's semihosting call (newlib's rdimon); with no debugger it escalates to a
+    HardFault. Found by an adversarial test: the report said only 'BKPT with no debugger'."""
+    import subprocess
+
+    from elf_build import COMMON, SRC, STM32F746
+    (tmp_path / "semi.c").write_text('int main(void) { __asm volatile("bkpt 0xab"); for (;;) {} }\n')
+    out = tmp_path / "semi.elf"
+    subprocess.run([gcc(), *COMMON, *STM32F746, "startup.c", str(tmp_path / "semi.c"), "-o", str(out), "-lgcc"],
+                   cwd=SRC, check=True, capture_output=True)
+    sim = mcusim.load("nucleo-f746", firmware=str(out))
+    with pytest.raises(CoreFault, match=r"BKPT #0xab, a semihosting call.*nosys\.specs.*\(main\+0x"):
+        sim.run(seconds="1ms")
+
+
 def test_a_system_profile_refuses_an_elf():
     with pytest.raises(ConfigError, match="system runs its boards' own firmware"):
         mcusim.load("elementall", firmware=elf("ticks"))

@@ -542,13 +542,26 @@ class CortexMCore:
         elif intno == INTNO_UDEF:
             self._stop = ("fault", pc, "undefined instruction")
         elif intno == 7:                         # EXCP_BKPT
-            self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, "BKPT with no debugger attached")
+            self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, self._bkpt_text(pc))
         elif intno == 3:                         # EXCP_PREFETCH_ABORT: PC is the failed fetch
             self._stop = ("fault", pc, _fetch_fault(pc))
         else:
             self._stop = ("fault", pc, _CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
         uc.emu_stop()
 
+
+    def _bkpt_text(self, pc) -> str:
+        """A BKPT without a debugger (on the chip it escalates to HardFault): its immediate, and
+        for 0xAB what that is (an Arm semihosting call, which needs a host to answer it)."""
+        try:
+            imm = self.read(pc & ~1, 2)[0]
+        except Exception:   # noqa: BLE001 (unicorn's UcError: nothing readable there)
+            return "BKPT with no debugger attached"
+        if imm == 0xAB:
+            return ("BKPT #0xab, a semihosting call, with no debugger attached to answer it: semihosting "
+                    "is not supported (link with --specs=nosys.specs instead of rdimon.specs, or drop "
+                    "initialise_monitor_handles)")
+        return f"BKPT #{imm:#04x} with no debugger attached"
 
     def _mmio(self, uc, address, size, value):
         """One peripheral access by the firmware; value None for a read. Returns the read value."""
