@@ -65,7 +65,7 @@ from unicorn.unicorn_const import (
 
 from ..errors import ConfigError, McusimError
 from ..kernel import PRIO_CPU
-from . import idle
+from . import faults, idle
 from .exceptions import ExceptionModel
 from .memory import PAGE
 
@@ -74,28 +74,6 @@ MAX_QUANTUM = 1 << 20          # instructions per emu_start at most (the kernel 
 # the ITCM RAM of a Cortex-M7, before its first instruction)
 NO_UNTIL = 0xFFFFFFFF
 INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
-
-
-_CPU_EXCEPTIONS = {   # QEMU's exception numbers, as unicorn reports them
-    4: "data abort",
-    17: "no coprocessor (a floating-point instruction with the FPU disabled)",
-    18: "invalid state (a branch to an address with bit 0 clear: EPSR.T = 0, ARM state does not exist "
-        "on Cortex-M; an INVSTATE UsageFault on the chip)",
-    19: "invalid PC on exception return",
-}
-
-
-# Armv7-M ARM B3.1, the default memory map: regions that are Execute Never
-_XN_REGIONS = ((0x40000000, 0x60000000, "Peripheral"), (0xA0000000, 0xE0000000, "Device"),
-               (0xE0000000, 1 << 32, "System"))
-
-
-def _fetch_fault(address) -> str:
-    for lo, hi, name in _XN_REGIONS:
-        if lo <= address < hi:
-            return (f"instruction fetch from {address:#010x}, in the {name} region, which is Execute Never "
-                    "(a MemManage fault on the chip)")
-    return f"instruction fetch from {address:#010x}, where there is no code (prefetch abort)"
 
 
 class CoreFault(McusimError):
@@ -197,7 +175,7 @@ class CortexMCore:
     def _load(self, image):
         for seg in image.segments:
             if not self._covered(seg.address, len(seg.data), ("ram", "flash")):
-                raise ConfigError(self._outside(image, seg))
+                raise ConfigError(faults.outside(self, image, seg))
             pos = 0
             while pos < len(seg.data):               # region by region (a segment may span two)
                 m, off = self._region(seg.address + pos, 1)
@@ -223,25 +201,6 @@ class CortexMCore:
                     elif hw & 0xFFF0 == 0xF380 and i + 3 < len(d) and (d[i + 2] | d[i + 3] << 8) in (
                             0x8810, 0x8811, 0x8812, 0x8813):           # MSR PRIMASK/BASEPRI(_MAX)/FAULTMASK
                         self._unmask.add(base + i + 4)
-
-    def _outside(self, image, seg) -> str:
-        """What a loadable segment that does not fit the board's memory overflows, in the user's
-        terms: its sections, and by how many bytes it runs past the memory it starts in."""
-        what = f" ({', '.join(seg.sections)})" if seg.sections else ""
-        start, size = seg.address, len(seg.data)
-        m, off = self._region(start, 1)
-        if m is None:
-            names = ", ".join(f"{x.name} {x.base:#010x}-{x.base + x.size - 1:#010x}" for x in self.memories)
-            return (f"{image.path}: a loadable segment{what} at {start:#010x} ({size} bytes) lies outside "
-                    f"the board's memory ({names})")
-        end = start - off + m.size
-        m, off = self._region(end, 1)
-        while m is not None:        # (memories that follow each other, as DTCM and SRAM1, are one span)
-            end += m.size - off
-            m, off = self._region(end, 1)
-        return (f"{image.path}: a loadable segment{what} at {start:#010x} ({size} bytes) overflows the "
-                f"board's memory by {start + size - end} bytes: it runs to {start + size - 1:#010x}, the "
-                f"memory from {start:#010x} ends at {end - 1:#010x}")
 
     def _map_peripherals(self):
         pages = set()
@@ -370,7 +329,7 @@ class CortexMCore:
         self._wfi_at = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         if not self._thumb():                # a BX to an even address was a quantum's last instruction
-            self._stop = ("fault", pc, self._invstate(pc))
+            self._stop = ("fault", pc, faults.invstate(self, pc))
             self._in_emu = False
             return 0
         try:
@@ -395,10 +354,10 @@ class CortexMCore:
                 err, self._stop = None, ((hint,) if hint == "wfe" else None)
                 return self._retired_to(pc)
         if err is not None and stop is None and not self._thumb():
-            self._stop = ("fault", pc, self._invstate(pc))        # EPSR.T = 0: INVSTATE
+            self._stop = ("fault", pc, faults.invstate(self, pc))        # EPSR.T = 0: INVSTATE
             return self._retired_to(pc)
         if err is not None and (stop is None or stop[0] != "fault"):
-            self._stop = ("fault", pc, self._uc_error_text(err, pc))
+            self._stop = ("fault", pc, faults.uc_error_text(err))
             return self._retired_to(pc)
         if stop is not None and stop[0] == "exc_return":
             return self._q_base + self._blk_n
@@ -419,7 +378,7 @@ class CortexMCore:
             try:
                 uc.emu_start(pc | 1, NO_UNTIL, count=1)
             except UcError as exc:
-                self._stop = ("fault", pc, self._uc_error_text(exc, pc))
+                self._stop = ("fault", pc, faults.uc_error_text(exc))
             finally:
                 self._in_emu = self._replaying = False
                 self._replay = []
@@ -429,26 +388,11 @@ class CortexMCore:
     def _thumb(self) -> bool:
         return bool(self.uc.reg_read(A.UC_ARM_REG_XPSR) >> 24 & 1)
 
-    def _invstate(self, pc) -> str:
-        lr = self.uc.reg_read(A.UC_ARM_REG_LR)
-        return (f"{_CPU_EXCEPTIONS[18]}; branched to {pc:#010x}, LR {lr:#010x} "
-                f"({self.where(lr & ~1)}, after the call if it was one)")
-
     def _halfword(self, address):
         try:
             return int.from_bytes(self.uc.mem_read(address, 2), "little")
         except UcError:
             return None
-
-    def _uc_error_text(self, err, pc):
-        text = str(err)
-        if "UNMAPPED" in text.upper():
-            return f"access to unmapped memory ({text})"
-        if "PROT" in text.upper():
-            return f"access the memory does not allow ({text}; flash is not written by a store)"
-        if "INSN" in text.upper():
-            return "undefined instruction"
-        return text
 
     def _fault(self, pc, what, t):
         self.state = "fault"
@@ -542,26 +486,13 @@ class CortexMCore:
         elif intno == INTNO_UDEF:
             self._stop = ("fault", pc, "undefined instruction")
         elif intno == 7:                         # EXCP_BKPT
-            self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, self._bkpt_text(pc))
+            self._stop = ("debug", "T05") if self.debug is not None else ("fault", pc, faults.bkpt_text(self, pc))
         elif intno == 3:                         # EXCP_PREFETCH_ABORT: PC is the failed fetch
-            self._stop = ("fault", pc, _fetch_fault(pc))
+            self._stop = ("fault", pc, faults.fetch_fault(pc))
         else:
-            self._stop = ("fault", pc, _CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
+            self._stop = ("fault", pc, faults.CPU_EXCEPTIONS.get(intno, f"CPU exception {intno}"))
         uc.emu_stop()
 
-
-    def _bkpt_text(self, pc) -> str:
-        """A BKPT without a debugger (on the chip it escalates to HardFault): its immediate, and
-        for 0xAB what that is (an Arm semihosting call, which needs a host to answer it)."""
-        try:
-            imm = self.read(pc & ~1, 2)[0]
-        except Exception:   # noqa: BLE001 (unicorn's UcError: nothing readable there)
-            return "BKPT with no debugger attached"
-        if imm == 0xAB:
-            return ("BKPT #0xab, a semihosting call, with no debugger attached to answer it: semihosting "
-                    "is not supported (link with --specs=nosys.specs instead of rdimon.specs, or drop "
-                    "initialise_monitor_handles)")
-        return f"BKPT #{imm:#04x} with no debugger attached"
 
     def _mmio(self, uc, address, size, value):
         """One peripheral access by the firmware; value None for a read. Returns the read value."""
