@@ -302,7 +302,11 @@ PARTS = {k.name: k for k in (
         directions=Param((1, 1), length=range(2, 9), items=Param(1, choices=(1, -1))),
         wheel_diameter=_num(0.39, above=0, max=10.0, unit="m"), track=_num(0.55, above=0, max=100.0, unit="m"),
         wheelbase=_num(0.45, above=0, max=100.0, unit="m"), mass=_num(50.0, above=0, max=1e5, unit="kg"),
-        wheel_mass=_num(2.0, min=0, max=1e4, unit="kg"), yaw_inertia=_num(1.0, above=0, max=1e6, unit="kg·m²"),
+        wheel_mass=_num(2.0, min=0, max=1e4, unit="kg"), yaw_inertia=Param(
+            None, kind=float, above=0, max=1e6, unit="kg·m²",
+            doc="the rigid body's yaw inertia, a reference only: reported against the inertia the model's "
+                "yaw dynamics have (the mass split over the wheels) as yaw_inertia_ratio, docs/plants.md "
+                "§1.5; none: m·(wheelbase² + track²)/12"),
         chi=_num(1.5, min=1.0, max=10.0), mu_turn=_num(0.5, min=0, max=10.0), crr=_num(0.03, min=0, max=1.0),
         step=DurationParam("1ms", min=1e-6, max=1.0),
         yaw_rate_eps=_num(0.05, above=0, max=10.0, unit="rad/s"), speed_eps=_num(0.01, above=0, max=10.0, unit="m/s"),
