@@ -339,3 +339,18 @@ def test_a_scenario_may_come_through_a_pipe(tmp_path):
     sc = load_scenario(str(fifo))
     writer.join()
     assert sc.board == "pro-mini"
+
+
+def test_a_number_check_of_a_topic_that_is_a_table_is_a_usage_error_naming_its_fields(tmp_path, capsys):
+    """Found by a new user: approx on the rover's odometry topic (a table x, y, yaw) failed as
+    'FAIL ... {x: 0.0, ...}' with exit 1, though every field was within tolerance. A number check
+    needs a number: the scenario is refused before the run, naming the fields and the summary
+    path that reads one."""
+    sc = tmp_path / "odo.toml"
+    sc.write_text('[scenario]\nboard = "elementall"\nduration = "20ms"\n'
+                  '[[expect]]\ntopic = "odometry"\napprox = 0.0\ntol = 1\n')
+    assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "odo.toml:5" in err and "odometry is a table (x, y, yaw)" in err and 'summary = "odometry.x"' in err
+    sc.write_text(sc.read_text().replace('topic = "odometry"', 'summary = "odometry.x"'))
+    assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 0

@@ -246,6 +246,16 @@ def plan_expect(sc, sim, e: _Expect, end: int) -> tuple:
     if tick < sim.kernel.now:
         raise sc._err(e.line, f"{where}: time {_fmt_time(e.time)} is already past")
     test = CHECKS[next(iter(e.check))]
+    numeric = next(iter(e.check)) in ("approx", "min", "max")
+    if numeric and e.source[0] in ("topic", "part"):
+        now = read()            # (topics and part values are read without side effects)
+        if isinstance(now, dict):
+            label = ".".join(e.source[1:])
+            fields = ", ".join(map(str, now))
+            raise sc._err(sc._line("expect", e.index, e.source[0]),
+                          f"{where}: {label} is a table ({fields}), and {next(iter(e.check))} needs a "
+                          f"number: check one field, summary = \"{label}.{next(iter(now), 'x')}\" if the "
+                          "summary has it (mcusim run ... --summary shows its paths)")
 
     def check():
         got = read()
