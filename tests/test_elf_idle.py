@@ -10,41 +10,37 @@ import pytest
 from elf_build import BIN
 
 import mcusim
-from mcusim.cli import main
+from mcusim.reglog import load_logged
 from mcusim.elf import idle
 
 
-def run_cli(tmp_path, which, skip, monkeypatch, duration="3ms"):
+def run_both(tmp_path, which, skip, monkeypatch, skips):
+    """One run of 3 ms with the fast-forward on or off: (register log bytes, VCD bytes, the core's
+    and the image's state at the end)."""
     monkeypatch.setattr(idle, "IDLE_SKIP", skip)
     log, vcd = tmp_path / f"regs{which}{skip}.jsonl", tmp_path / f"wave{which}{skip}.vcd"
-    assert main(["run", "nucleo-f746", "--firmware", str(BIN / "idle.elf"), "--set", f"/which={which}",
-                 "--duration", duration, "-q", "--register-log", str(log), "--vcd", str(vcd)]) == 0
-    return log.read_bytes(), vcd.read_bytes()
+    sim, _ = load_logged("nucleo-f746", str(log), firmware=str(BIN / "idle.elf"), overrides={"/which": which})
+    sim.trace_vcd(str(vcd))
+    sim.run(seconds="3ms")
+    cpu, syms = sim.mcu.cpu, sim.firmware.symbols
+    state = (cpu.instructions, cpu.cpu_time, cpu.pc, cpu.busy_ticks, cpu.read(syms["stamp"], 256),
+             sim.mcu.read32(syms["ticks"]), sim.mcu.read32(syms["tim2_count"]), dict(cpu.isr_count))
+    sim.close()
+    return log.read_bytes(), vcd.read_bytes(), state
 
 
 @pytest.mark.parametrize("which", [1, 2, 3, 4])
-def test_idle_skip_gives_the_same_register_log_and_vcd_as_spinning(tmp_path, which, monkeypatch):
-    on, off = run_cli(tmp_path, which, True, monkeypatch), run_cli(tmp_path, which, False, monkeypatch)
-    assert on[0] == off[0] and on[1] == off[1]
-    assert on[0].count(b"SysTick_Handler") >= (0 if which == 2 else 25)   # the handlers did run
-
-
-@pytest.mark.parametrize("which", [1, 2, 3, 4])
-def test_idle_skip_retires_the_same_instructions_at_the_same_time(which, monkeypatch):
-    seen, skips, spinning = [], [], idle.spinning
+def test_idle_skip_gives_the_same_register_log_vcd_and_core_state_as_spinning(tmp_path, which, monkeypatch):
+    skips, spinning = [], idle.spinning
     monkeypatch.setattr(idle, "spinning", lambda core, pc: spinning(core, pc) and not skips.append(pc))
-    for skip in (True, False):
-        monkeypatch.setattr(idle, "IDLE_SKIP", skip)
-        sim = mcusim.load("nucleo-f746", firmware=str(BIN / "idle.elf"), overrides={"/which": which})
-        sim.run(seconds="2ms")
-        cpu, syms = sim.mcu.cpu, sim.firmware.symbols
-        seen.append((cpu.instructions, cpu.cpu_time, cpu.pc, cpu.busy_ticks, cpu.read(syms["stamp"], 256),
-                     sim.mcu.read32(syms["ticks"]), sim.mcu.read32(syms["tim2_count"]), dict(cpu.isr_count)))
-        sim.close()
-    assert seen[0] == seen[1]
+    on = run_both(tmp_path, which, True, monkeypatch, skips)
+    off = run_both(tmp_path, which, False, monkeypatch, skips)
+    assert on[0] == off[0] and on[1] == off[1]
+    assert on[2] == off[2]                         # instructions, time, busy ticks, CYCCNT stamps
     assert len(skips) > 10                         # the fast-forward did run (the first time)
-    ticks, tim2 = seen[0][5], seen[0][6]
-    assert (ticks, tim2) == ((0, 0) if which == 2 else (19, 0 if which == 4 else 8))
+    assert on[0].count(b"SysTick_Handler") >= (0 if which == 2 else 25)   # the handlers did run
+    ticks, tim2 = on[2][5], on[2][6]
+    assert (ticks, tim2) == ((0, 0) if which == 2 else (29, 0 if which == 4 else 12))
 
 
 def test_idle_skip_retires_an_idle_loop_a_quantum_at_a_time(monkeypatch):
