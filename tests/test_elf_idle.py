@@ -10,8 +10,8 @@ import pytest
 from elf_build import BIN
 
 import mcusim
-from mcusim.reglog import load_logged
 from mcusim.elf import idle
+from mcusim.reglog import load_logged
 
 
 def run_both(tmp_path, which, skip, monkeypatch, skips):
