@@ -14,7 +14,7 @@ from mcusim.elf import idle
 from mcusim.reglog import load_logged
 
 
-def run_both(tmp_path, which, skip, monkeypatch, skips):
+def run_both(tmp_path, which, skip, monkeypatch):
     """One run of 3 ms with the fast-forward on or off: (register log bytes, VCD bytes, the core's
     and the image's state at the end)."""
     monkeypatch.setattr(idle, "IDLE_SKIP", skip)
@@ -33,8 +33,8 @@ def run_both(tmp_path, which, skip, monkeypatch, skips):
 def test_idle_skip_gives_the_same_register_log_vcd_and_core_state_as_spinning(tmp_path, which, monkeypatch):
     skips, spinning = [], idle.spinning
     monkeypatch.setattr(idle, "spinning", lambda core, pc: spinning(core, pc) and not skips.append(pc))
-    on = run_both(tmp_path, which, True, monkeypatch, skips)
-    off = run_both(tmp_path, which, False, monkeypatch, skips)
+    on = run_both(tmp_path, which, True, monkeypatch)
+    off = run_both(tmp_path, which, False, monkeypatch)
     assert on[0] == off[0] and on[1] == off[1]
     assert on[2] == off[2]                         # instructions, time, busy ticks, CYCCNT stamps
     assert len(skips) > 10                         # the fast-forward did run (the first time)
