@@ -175,6 +175,24 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=Param(
         0, min=0, max=495, required=True, doc="NVIC interrupt line: 24 USART0, 25 UART1, 26 USART2, 27 USART3")),
          "LPC4337 USART", needs=("base", "clock")),
+    Kind("peripheral", "lpc43xx-cgu", "mcusim.periph.lpc43xx.cgu:Cgu", _P(
+        xtal_hz=Param(12_000_000, min=1_000_000, max=25_000_000, unit="Hz", doc="crystal on XTAL1/XTAL2")),
+        "LPC43xx clock generation unit: crystal, PLL0USB/PLL0AUDIO, PLL1 and LOCK, dividers, base "
+        "clocks; BASE_M4_CLK and PLL1 held to the board's core clock", needs=("base",)),
+    Kind("peripheral", "lpc43xx-ccu1", "mcusim.periph.lpc43xx.cgu:Ccu1", {},
+         "LPC43xx clock control unit 1: branch clock CFG/STAT (STAT follows CFG), PM, BASE_STAT; not gating",
+         needs=("base",)),
+    Kind("peripheral", "lpc43xx-ccu2", "mcusim.periph.lpc43xx.cgu:Ccu2", {},
+         "LPC43xx clock control unit 2 (UART, SSP, SDIO, audio branch clocks), as CCU1", needs=("base",)),
+    Kind("peripheral", "lpc43xx-scu", "mcusim.periph.lpc43xx.scu:Scu", {},
+         "LPC43xx system control unit: pin configuration registers, stored (pin functions not modelled)",
+         needs=("base",)),
+    Kind("peripheral", "lpc43xx-creg", "mcusim.periph.lpc43xx.scu:Creg", {},
+         "LPC43xx configuration registers: CHIPID, M4MEMMAP held to the board's boot shadow, the rest stored",
+         needs=("base",)),
+    Kind("peripheral", "lpc43xx-rgu", "mcusim.periph.lpc43xx.rgu:Rgu", {},
+         "LPC43xx reset generation unit: a peripheral reset completes at once; resets the GPIO, ADC, SCU "
+         "and CREG models, refuses the others it cannot do", needs=("base",)),
     Kind("peripheral", "avr-cpu", "mcusim.periph.avr.cpu:AvrCpuRegs", {},
          "ATmega328P SREG (its I flag is the global interrupt enable)"),
     Kind("peripheral", "avr-port", "mcusim.periph.avr.port:AvrPort", _P(

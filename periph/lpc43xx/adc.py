@@ -128,6 +128,7 @@ class _Conversion:
 
 
 class Adc(Peripheral):
+    RGU_RESET = True  # the RGU may call reset() (periph/lpc43xx/rgu.py)
     SIZE = 0x1000     # one 4 KB APB3 slot (ADC1 follows ADC0 at +0x1000)
     BUS_WIDTH = 4
     ACCESS_SIZES = (4,)

@@ -92,6 +92,7 @@ def _port_registers(ports: int, pins: int) -> tuple:
 class Gpio(Peripheral):
     """The GPIO port block: ``ports`` ports of ``pins_per_port`` pins (LPC4337: 8 ports, GPIO0..7)."""
 
+    RGU_RESET = True  # the RGU may call reset() (periph/lpc43xx/rgu.py)
     SIZE = 0x4000
     BUS_WIDTH = 4
     ACCESS_SIZES = (1, 4)
