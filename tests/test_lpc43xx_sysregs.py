@@ -153,3 +153,61 @@ def test_freq_mon_measures_pll1_against_the_irc_at_once(sim):
     v = rd(sim, CGU + 0x14)
     assert (v >> 23) & 1 == 0 and v & 0x1FF == 0
     assert (v >> 9) & 0x3FFF == 511 * 17                      # 204 MHz / 12 MHz
+
+
+# --- the core's clock chain (found by an adversarial test: each was accepted, the core ran on) ---
+XTAL_OSC_CTRL, IDIVA_CTRL, FREQ_MON = CGU + 0x18, CGU + 0x48, CGU + 0x14
+
+
+def test_the_crystal_switched_off_under_the_core_is_refused_directly_and_through_pll1(sim):
+    with pytest.raises(UnsupportedConfiguration, match=r"XTAL_OSC_CTRL.*0 MHz from PLL1"):
+        wr(sim, XTAL_OSC_CTRL, 0x5)                      # ENABLE = 1 powers it down; PLL1 runs on it
+    assert rd(sim, XTAL_OSC_CTRL) == 0x4 and rd(sim, PLL1_STAT) == 1
+    wr(sim, BASE_M4_CLK, 0x0600_0800)                    # the core on the crystal itself
+    with pytest.raises(UnsupportedConfiguration, match=r"XTAL_OSC_CTRL.*0 MHz from crystal"):
+        wr(sim, XTAL_OSC_CTRL, 0x5)
+
+
+def test_an_integer_divider_feeding_the_core_is_held_to_the_core_clock(sim):
+    wr(sim, IDIVA_CTRL, 0x0900_0800)                     # IDIVA = PLL1 / 1: 204 MHz
+    wr(sim, BASE_M4_CLK, 0x0C00_0800)                    # the core on IDIVA
+    with pytest.raises(UnsupportedConfiguration, match=r"IDIVA_CTRL.*102 MHz from IDIVA"):
+        wr(sim, IDIVA_CTRL, 0x0900_0804)                 # / 2
+    with pytest.raises(UnsupportedConfiguration, match=r"PLL1_CTRL.*0 MHz"):
+        wr(sim, PLL1_CTRL, PLL1_204_DIRECT | 1)          # PLL1 powered down under the divider
+
+
+@pytest.mark.parametrize("ctrl, cco", [(0x0610_0040, 408), (0x0621_0000, 408), (0x0610_1080, 102)])
+def test_pll1_with_its_cco_outside_156_to_320_mhz_is_refused(sim, ctrl, cco):
+    # UM10503: the CCO runs from 156 to 320 MHz. Integer mode M = 17, N = 1, P = 1 and non-integer
+    # M = 34, N = 1, P = 1 both give 204 MHz out with a 408 MHz CCO; direct M = 17, N = 2 is 102 MHz
+    wr(sim, BASE_M4_CLK, 0x0600_0800)                    # off PLL1: only the range decides
+    with pytest.raises(UnsupportedConfiguration, match=rf"PLL1_CTRL.*CCO at {cco} MHz.*156-320"):
+        wr(sim, PLL1_CTRL, ctrl)
+    wr(sim, PLL1_CTRL, 0x0621_1080)                      # direct, M = 34, N = 2: CCO 204 MHz
+
+
+def test_a_transitional_core_clock_is_refused_once_it_has_lasted_2_ms(sim):
+    wr(sim, BASE_M4_CLK, 0x0100_0800)                    # IRC, as LPCOpen while it reprograms PLL1
+    sim.run(seconds="1ms")
+    wr(sim, BASE_M4_CLK, 0x0900_0800)                    # back on PLL1 in time
+    sim.run(seconds="3ms")
+    wr(sim, BASE_M4_CLK, 0x0100_0800)
+    with pytest.raises(UnsupportedConfiguration, match=r"12 MHz from IRC for 2 ms"):
+        sim.run(seconds="3ms")
+    assert sim.time_s == pytest.approx(0.006, abs=1e-9)
+
+
+def test_the_cores_own_branch_clock_cannot_be_stopped(sim):
+    with pytest.raises(UnsupportedConfiguration, match="CLK_M4_M4CORE_CFG.*core would stop"):
+        wr(sim, CCU1 + 0x448, 0)
+    assert rd(sim, CCU1 + 0x448) & 1 and rd(sim, CCU1 + 0x44C) & 1
+
+
+def test_freq_mon_counts_nothing_from_the_32_khz_oscillator_while_creg0_holds_it_off(sim):
+    assert rd(sim, CREG + 0x4) & 0b1100                  # CREG0 after reset: RESET32KHZ, PD32KHZ
+    wr(sim, FREQ_MON, (1 << 23) | 0x1FF)                 # CLK_SEL 0: the 32 kHz oscillator
+    assert (rd(sim, FREQ_MON) >> 9) & 0x3FFF == 0
+    wr(sim, CREG + 0x4, rd(sim, CREG + 0x4) & ~0b1100)
+    wr(sim, FREQ_MON, (1 << 23) | 0x1FF)
+    assert (rd(sim, FREQ_MON) >> 9) & 0x3FFF == 511 * 32768 // 12_000_000

@@ -14,12 +14,18 @@ Rules:
 * a status follows its enable at once (oscillator and PLL start-up and lock times are not
   modelled): PLL1_STAT.LOCK = not PLL1_CTRL.PD, PLL0USB/PLL0AUDIO_STAT read LOCK and FR while
   their PD bit is clear; a CCU branch's STAT follows its CFG;
-* BASE_M4_CLK (the core clock) must give the board's core clock. Accepted besides: the IRC and
-  the crystal (12 MHz), which LPCOpen selects for a few instructions while it reprograms PLL1,
-  and PLL1 at half the core clock, the ramp step UM10503 requires before running above 110 MHz
-  (LPCOpen clears DIRECT, waits about 50 us, sets it). The core keeps running at the board's
-  clock meanwhile. Anything else, and a PLL1_CTRL write that changes the frequency PLL1 gives
-  while BASE_M4_CLK selects it, is refused naming the register and the frequency;
+* BASE_M4_CLK (the core clock) must give the board's core clock, through whatever chain feeds it
+  (crystal, PLL1, an integer divider). Accepted besides, for at most ``TRANSIENT_S`` (2 ms): the
+  IRC and the crystal (12 MHz), which LPCOpen selects for a few instructions while it reprograms
+  PLL1, and PLL1 at half the core clock, the ramp step UM10503 requires before running above
+  110 MHz (LPCOpen clears DIRECT, waits about 50 us, sets it). The core keeps running at the
+  board's clock meanwhile; a core still on such a clock when the 2 ms are up is refused then.
+  Anything else is refused at the write that makes it, naming the register and the frequency:
+  a BASE_M4_CLK selection, and a write to any register of the chain feeding it (PLL1_CTRL,
+  XTAL_OSC_CTRL: the crystal switched off under the core, an IDIVx_CTRL);
+* PLL1's current-controlled oscillator runs only between 156 and 320 MHz (UM10503): a PLL1_CTRL
+  that powers it up outside that range is refused (the chip would never lock);
+* the CCU1 branch clock of the core (CLK_M4_M4CORE) cannot be stopped (the core would stop);
 * everything else is stored: the other base clocks, the integer dividers, PLL0USB/PLL0AUDIO
   (their dividers are not decoded), the branch clocks. Gating is not modelled: a peripheral whose
   branch clock is off still responds, and the modelled ADC, I2C and USART keep their profile's
@@ -39,6 +45,11 @@ from mcusim.errors import UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 
 IRC_HZ = 12_000_000
+#: how long the core may run on LPCOpen's transitional clocks (the IRC or crystal while PLL1 is
+#: reprogrammed, PLL1's 102 MHz ramp step): its start-up leaves them within microseconds
+TRANSIENT_S = Fraction(2, 1000)
+#: PLL1's CCO range (UM10503, PLL1 description)
+CCO_MIN, CCO_MAX = 156_000_000, 320_000_000
 # clock source numbers of the CLK_SEL fields (UM10503 Table "Clock source selection")
 SRC_32K, SRC_IRC, SRC_XTAL, SRC_PLL0USB, SRC_PLL0AUDIO, SRC_PLL1 = 0x00, 0x01, 0x06, 0x07, 0x08, 0x09
 SRC_IDIV = {0x0C: "IDIVA_CTRL", 0x0D: "IDIVB_CTRL", 0x0E: "IDIVC_CTRL", 0x0F: "IDIVD_CTRL", 0x10: "IDIVE_CTRL"}
@@ -67,7 +78,7 @@ def _pll0(prefix, base, frac=False):
 
 
 def _idiv(letter, offset, bits):
-    return Register(f"IDIV{letter}_CTRL", offset, reset=0x0100_0000, fields=(
+    return Register(f"IDIV{letter}_CTRL", offset, reset=0x0100_0000, on_write=f"_write_idiv{letter}", fields=(
         Field("PD", 0), Field("IDIV", 2, bits), _AUTOBLOCK, _SEL))
 
 
@@ -103,7 +114,8 @@ class Cgu(Peripheral):
             Field("RCNT", 0, 9), Field("FCNT", 9, 14, access="r"), Field("MEAS", 23), _SEL)),
         # crystal on (ENABLE = 0 is "on"), no bypass; HF stays as at chip reset (LPCOpen only sets it
         # for a crystal of 20 MHz or more)
-        Register("XTAL_OSC_CTRL", 0x18, reset=0x4, fields=(Field("ENABLE", 0), Field("BYPASS", 1), Field("HF", 2))),
+        Register("XTAL_OSC_CTRL", 0x18, reset=0x4, on_write="_write_xtal",
+                 fields=(Field("ENABLE", 0), Field("BYPASS", 1), Field("HF", 2))),
         *_pll0("PLL0USB", 0x1C),
         *_pll0("PLL0AUDIO", 0x2C, frac=True),
         Register("PLL1_STAT", 0x40, access="r", on_read="_read_pll1_stat", fields=(Field("LOCK", 0, access="r"),)),
@@ -120,13 +132,16 @@ class Cgu(Peripheral):
         self.mcu = mcu
         self.core_hz = Fraction(mcu.core_clock.hz)
         self.xtal_hz = Fraction(xtal_hz)
+        self._transient_ev = None      # the check that the core left a transitional clock
 
     # --- frequencies ---------------------------------------------------------------------------
     def source_hz(self, sel: int, depth: int = 0) -> Fraction | None:
         """The frequency of clock source ``sel`` as the registers set it; 0 when it is off; None
         when the model does not know it (an external clock, PLL0USB/PLL0AUDIO)."""
         if sel == SRC_32K:
-            return Fraction(32768)
+            creg = self.mcu.periph.get("CREG")
+            # CREG0: RESET32KHZ or PD32KHZ holds the 32 kHz oscillator off
+            return Fraction(0) if creg is not None and creg.value["CREG0"] & 0b1100 else Fraction(32768)
         if sel == SRC_IRC:
             return Fraction(IRC_HZ)
         if sel == SRC_XTAL:
@@ -140,6 +155,19 @@ class Cgu(Peripheral):
             src = self.source_hz(self.field(reg, "CLK_SEL"), depth + 1)
             return None if src is None else src / (self.field(reg, "IDIV") + 1)
         return None
+
+    def pll1_cco_hz(self, ctrl: int) -> Fraction | None:
+        """PLL1's CCO frequency for a PLL1_CTRL value (UM10503): M·Fin/N in direct and non-integer
+        mode, 2P times the output in integer mode; None when it does not run (powered down,
+        bypassed) or its input is unknown."""
+        if ctrl & 1 or ctrl >> 1 & 1:
+            return None
+        fin = self.source_hz((ctrl >> 24) & 0x1F)
+        if fin is None:
+            return None
+        m, n, p = ((ctrl >> 16) & 0xFF) + 1, ((ctrl >> 12) & 3) + 1, 1 << ((ctrl >> 8) & 3)
+        direct, fbsel = ctrl >> 7 & 1, ctrl >> 6 & 1
+        return fin * m / n * (2 * p if fbsel and not direct else 1)
 
     def pll1_hz(self, ctrl: int) -> Fraction | None:
         """PLL1's output for a PLL1_CTRL value (UM10503, PLL1 modes): direct, M·Fin/N; integer
@@ -159,29 +187,80 @@ class Cgu(Peripheral):
         return fin * m / (n * 2 * p)
 
     # --- the core clock ------------------------------------------------------------------------
-    def _check_m4(self, reg: str, base: int, pll1_ctrl: int, value: int) -> None:
+    def _check_m4(self, reg: str, value: int) -> None:
+        """After a write to ``reg`` (already stored; a refusal puts it back): the core's clock, as
+        BASE_M4_CLK and the chain feeding it now give it, is the board's, or one of LPCOpen's
+        transitional clocks (for TRANSIENT_S at most). Else UnsupportedConfiguration."""
+        base = self.value["BASE_M4_CLK"]
         if base & 1:
             raise UnsupportedConfiguration(self.name, reg, None, value,
                                            "powers down BASE_M4_CLK, the core's clock: not modelled")
         sel = (base >> 24) & 0x1F
-        if sel in (SRC_IRC, SRC_XTAL) and self.source_hz(sel):
-            return            # LPCOpen's clock while it reprograms PLL1 (the core keeps the board's clock)
-        hz = self.pll1_hz(pll1_ctrl) if sel == SRC_PLL1 else self.source_hz(sel)
-        if hz == self.core_hz or (sel == SRC_PLL1 and hz == self.core_hz / 2):
-            return            # the board's clock, or PLL1's ramp step at half of it
+        hz = self.source_hz(sel)
+        if hz == self.core_hz:
+            self._transient(None)
+            return
+        if (sel in (SRC_IRC, SRC_XTAL) and hz) or (sel == SRC_PLL1 and hz == self.core_hz / 2):
+            self._transient(sel)      # LPCOpen's clock while it reprograms PLL1, or the ramp step
+            return
         what = SOURCE_NAMES.get(sel, f"clock source {sel:#x}")
         given = "a frequency the model does not know" if hz is None else f"{float(hz) / 1e6:g} MHz"
         raise UnsupportedConfiguration(self.name, reg, None, value,
                                        f"gives the core {given} from {what}; the board runs at "
                                        f"{float(self.core_hz) / 1e6:g} MHz ([clocks] sysclk)")
 
+    def _transient(self, sel) -> None:
+        """Start (``sel``: the transitional source) or end (None) the core's stay on a
+        transitional clock; one that lasts TRANSIENT_S is refused then."""
+        kernel = self.mcu.kernel
+        if sel is None:
+            if self._transient_ev is not None:
+                self._transient_ev.cancel()
+                self._transient_ev = None
+            return
+        if self._transient_ev is None:
+            self._transient_ev = kernel.at(kernel.now + kernel.timebase.ticks(TRANSIENT_S), self._stayed)
+
+    def _stayed(self) -> None:
+        self._transient_ev = None
+        sel = (self.value["BASE_M4_CLK"] >> 24) & 0x1F
+        hz = self.source_hz(sel)
+        raise UnsupportedConfiguration(
+            self.name, "BASE_M4_CLK", None, self.value["BASE_M4_CLK"],
+            f"has run the core on {float(hz or 0) / 1e6:g} MHz from {SOURCE_NAMES.get(sel, hex(sel))} for "
+            f"{float(TRANSIENT_S) * 1e3:g} ms: a core clock other than the board's "
+            f"{float(self.core_hz) / 1e6:g} MHz is accepted only as LPCOpen's transitional step while "
+            "it reprograms PLL1 (the simulated core keeps the board's clock)")
+
     def _write_base_m4(self, old, new):
-        self._check_m4("BASE_M4_CLK", new, self.value["PLL1_CTRL"], new)
+        self._check_m4("BASE_M4_CLK", new)
 
     def _write_pll1_ctrl(self, old, new):
-        base = self.value["BASE_M4_CLK"]
-        if (base >> 24) & 0x1F == SRC_PLL1 and not base & 1:
-            self._check_m4("PLL1_CTRL", base, new, new)
+        cco = self.pll1_cco_hz(new)
+        if cco is not None and not CCO_MIN <= cco <= CCO_MAX:
+            raise UnsupportedConfiguration(self.name, "PLL1_CTRL", None, new,
+                                           f"runs PLL1's CCO at {float(cco) / 1e6:g} MHz, outside its "
+                                           "156-320 MHz range (UM10503): the PLL would not lock")
+        self._check_m4("PLL1_CTRL", new)
+
+    # the core's clock may come through the crystal or an integer divider
+    def _write_xtal(self, old, new):
+        self._check_m4("XTAL_OSC_CTRL", new)
+
+    def _write_idivA(self, old, new):
+        self._check_m4("IDIVA_CTRL", new)
+
+    def _write_idivB(self, old, new):
+        self._check_m4("IDIVB_CTRL", new)
+
+    def _write_idivC(self, old, new):
+        self._check_m4("IDIVC_CTRL", new)
+
+    def _write_idivD(self, old, new):
+        self._check_m4("IDIVD_CTRL", new)
+
+    def _write_idivE(self, old, new):
+        self._check_m4("IDIVE_CTRL", new)
 
     # --- status ----------------------------------------------------------------------------------
     def _read_pll1_stat(self, stored):
@@ -256,7 +335,12 @@ class _Ccu(Peripheral):
         self.mcu = mcu
 
     def write_register(self, reg, data, lanes=-1):
+        old = self.value[reg.name]
         super().write_register(reg, data, lanes)
+        if reg.name == "CLK_M4_M4CORE_CFG" and not self.value[reg.name] & 1:
+            self.value[reg.name] = old      # a refused write leaves the register as it was
+            raise UnsupportedConfiguration(self.name, reg.name, "RUN", 0,
+                                           "stops the core's own branch clock: the core would stop (not modelled)")
         if reg.name == "PM" or reg.name.endswith("_CFG"):
             self._sync()
 
