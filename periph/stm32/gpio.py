@@ -91,7 +91,15 @@ class Gpio(Peripheral):
         moder, odr = self.value["MODER"], self.value["ODR"]
         otyper, pupdr = self.value["OTYPER"], self.value["PUPDR"]
         afr = self.value["AFRL"] | (self.value["AFRH"] << 32)
+        flipped = otyper ^ self._otyper_seen
         for n, net in enumerate(self.pins):
+            if flipped >> n & 1:
+                # open drain needs every edge of a waveform, push-pull none: each timer output this
+                # pin listens to (whether routed now or not: its listener stays connected) decides
+                # again, also where the pin was an input when OTYPER changed (it kept the old choice)
+                for pin, (tim, ch) in self._listeners_on:
+                    if pin == n:
+                        self.mcu.periph[tim].oc[ch].refresh()
             mode = (moder >> 2 * n) & 3
             pull = (pupdr >> 2 * n) & 3
             net.pull = None if mode == _MODE_ANALOG else {1: 1, 2: 0}.get(pull)  # analog: no pulls
@@ -116,8 +124,6 @@ class Gpio(Peripheral):
             self._route(n, route)
             if route is not None:
                 port = self.mcu.periph[route[0]].oc[route[1]]
-                if (otyper ^ self._otyper_seen) >> n & 1:
-                    port.refresh()      # open drain needs every edge of a waveform, push-pull none
                 if port.wave is not None and not (otyper >> n) & 1:
                     net.set_wave(self.name, port.wave)   # fast engine: a push-pull PWM output
                     continue
