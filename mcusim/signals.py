@@ -161,6 +161,10 @@ class Net(_Carrier):
         """Driver ``driver`` drives a steady waveform from now on (until its next set/set_wave)."""
         self._drivers[driver] = wave
         self._resolve()
+        if self.wave is None and len(self._drivers) > 1:
+            # several drivers: the expander that checks them for contention follows the new
+            # descriptor (one planned from the old one would expand an edge past its end)
+            self.refresh()
 
     def set_pull(self, level: int | None) -> None:
         """Change the level the net takes when nothing drives it (a board pull-up or pull-down)."""

@@ -71,6 +71,12 @@ def scripts(draw):
 @example(([("MODER", 8192), ("AFRL", 33554432), ("OTYPER", 0), ("PUPDR", 0), ("ARR", 1), ("CCR1", 1),
            ("CCMR1", 96), ("CCER", 1), ("EGR", 1), ("SR", 0), ("CR1", 1)],
           [(0, "w", "MODER", 0), (0, "w", "OTYPER", 64), (0, "w", "MODER", 8192)], None, False, False))
+# found by a soak: an external driver joined a PWM pin, then a compare value went into the preload
+# register: the contention expander planned from the old waveform expanded its rise at the update
+# event, where the new waveform ends, and the fast engine reported a contention edge by edge never saw
+@example(([("MODER", 8192), ("AFRL", 33554432), ("OTYPER", 0), ("PUPDR", 0), ("ARR", 1), ("CCR1", 0),
+           ("CCMR1", 104), ("CCER", 1), ("EGR", 1), ("SR", 0), ("CR1", 1)],
+          [(0, "w", "CCR1", 1), (3, "ext", 0, 0), (3, "w", "CCR1", 0)], None, False, False))
 def test_nets_fast_equals_reference(s):
     init, ops, listen_at, wl, sample = s
     n = (ops[-1][0] if ops else 0) + 60
