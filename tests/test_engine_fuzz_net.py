@@ -77,6 +77,13 @@ def scripts(draw):
 @example(([("MODER", 8192), ("AFRL", 33554432), ("OTYPER", 0), ("PUPDR", 0), ("ARR", 1), ("CCR1", 0),
            ("CCMR1", 104), ("CCER", 1), ("EGR", 1), ("SR", 0), ("CR1", 1)],
           [(0, "w", "CCR1", 1), (3, "ext", 0, 0), (3, "w", "CCR1", 0)], None, False, False))
+# found by a soak: a disabled PWM channel switched to frozen mode at a wrap the fast engine passed
+# without its event kept a stale OCxREF (its compare matches only refresh a driven output); edge
+# by edge the wrap had set it from the old mode's comparison, and the re-enabled output rose
+@example(([("MODER", 8192), ("AFRL", 33554432), ("OTYPER", 0), ("PUPDR", 0), ("ARR", 1), ("CCR1", 0),
+           ("CCMR1", 96), ("CCER", 1), ("EGR", 1), ("SR", 0), ("CR1", 1)],
+          [(0, "w", "CCR1", 1), (1, "w", "CCER", 0), (2, "w", "CCMR1", 0), (2, "w", "CCER", 1)],
+          None, False, False))
 def test_nets_fast_equals_reference(s):
     init, ops, listen_at, wl, sample = s
     n = (ops[-1][0] if ops else 0) + 60

@@ -662,13 +662,15 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
                     self._refuse(reg, old, f"CC{ch}S", ccs)
                 decoded.append((ch, INPUT, False, lo >> 4, (lo >> 2) & 3))
         saved = [(self._mode[ch], self._ocpe[ch], self._icf[ch], self._icpsc[ch]) for ch, *_ in decoded]
+        # the counter up to now under the old modes (a wrap the fast engine passes here without its
+        # event leaves OCxREF as the old mode's comparison, as the wrap event does edge by edge)
+        self._sync()
         for ch, m, pe, icf, icpsc in decoded:
             self._mode[ch], self._ocpe[ch], self._icf[ch], self._icpsc[ch] = m, pe, icf, icpsc
         if not self._check_inputs():
             for (ch, *_), s in zip(decoded, saved):
                 self._mode[ch], self._ocpe[ch], self._icf[ch], self._icpsc[ch] = s
             self._refuse(reg, old, "CCxS", new & 0x303, "(input capture) is not modelled outside encoder mode")
-        self._sync()
         for (ch, *_), (_, pe_was, *_r) in zip(decoded, saved):
             if pe_was and not self._ocpe[ch]:  # [INF] as ARPE: OCxPE=0 transfers permanently
                 self._ccr[ch] = self.value[f"CCR{ch}"]

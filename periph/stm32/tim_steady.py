@@ -108,6 +108,8 @@ class SteadyStage:
         if k <= 0:
             return
         self._steady_flush(now)
+        if self._t_wrap <= now:
+            self._wrap_refs()
         m = self._arr + 1
         self._cnt = (self._cnt + k) % m if self._up else (self._cnt - k) % m
         self._tb += k * self._tick
@@ -144,6 +146,19 @@ class SteadyStage:
                 self._lazy[ch] = t if limit is None or (t is not None and t < limit) else None
         if self._ev_wrap is None and not self.value["CR1"] & _UDIS and self._uif_lazy is None:
             self._uif_lazy = self._next_wrap(after)
+
+    def _wrap_refs(self) -> None:
+        """A wrap passed without its event: OCxREF of the PWM channels no published waveform
+        describes (output disabled, or a constant level) as the edge-by-edge engine's wrap leaves
+        it, the comparison at the wrap's count (its compare matches refresh only a driven output,
+        so a disabled channel's OCxREF holds that until the next wrap or register write; a
+        switch to frozen mode keeps it)."""
+        cnt = 0 if self._up else self._arr
+        for ch in (1, 2, 3, 4):
+            m = self._mode[ch]
+            if m in (_PWM1, _PWM2) and self.oc[ch].wave is None:
+                c = self._ccr[ch]
+                self._ref[ch] = ((cnt < c) if self._up else (cnt <= c)) ^ (m == _PWM2)
 
     def _steady_ref(self, now: int) -> None:
         """OCxREF now of the channels whose output is a published waveform (no match event kept
