@@ -39,6 +39,7 @@ counts 0).
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import partialmethod
 from typing import ClassVar
 
 from mcusim.errors import UnsupportedConfiguration
@@ -244,23 +245,15 @@ class Cgu(Peripheral):
         self._check_m4("PLL1_CTRL", new)
 
     # the core's clock may come through the crystal or an integer divider
-    def _write_xtal(self, old, new):
-        self._check_m4("XTAL_OSC_CTRL", new)
+    def _write_chain(self, reg, old, new):
+        self._check_m4(reg, new)
 
-    def _write_idivA(self, old, new):
-        self._check_m4("IDIVA_CTRL", new)
-
-    def _write_idivB(self, old, new):
-        self._check_m4("IDIVB_CTRL", new)
-
-    def _write_idivC(self, old, new):
-        self._check_m4("IDIVC_CTRL", new)
-
-    def _write_idivD(self, old, new):
-        self._check_m4("IDIVD_CTRL", new)
-
-    def _write_idivE(self, old, new):
-        self._check_m4("IDIVE_CTRL", new)
+    _write_xtal = partialmethod(_write_chain, "XTAL_OSC_CTRL")
+    _write_idivA = partialmethod(_write_chain, "IDIVA_CTRL")
+    _write_idivB = partialmethod(_write_chain, "IDIVB_CTRL")
+    _write_idivC = partialmethod(_write_chain, "IDIVC_CTRL")
+    _write_idivD = partialmethod(_write_chain, "IDIVD_CTRL")
+    _write_idivE = partialmethod(_write_chain, "IDIVE_CTRL")
 
     # --- status ----------------------------------------------------------------------------------
     def _read_pll1_stat(self, stored):
