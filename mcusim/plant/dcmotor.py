@@ -44,13 +44,13 @@ kernel included, for 20 kHz drive/brake PWM with an encoder attached (0.5 s simu
 from __future__ import annotations
 
 import math
-from collections import OrderedDict, deque
+from collections import deque
 from dataclasses import dataclass, fields, replace
 
 from ..errors import ConfigError
 from ..kernel import PRIO_HW, PRIO_PLANT
 from . import pwl
-from .dcmotor_fast import CHUNK_MIN, PeriodicDrive
+from .dcmotor_fast import CHUNK_MIN, FLOWS_MAX, PLANS_MAX, PeriodicDrive, SecondSight
 from .presets import motor_preset
 
 INF = math.inf
@@ -194,8 +194,10 @@ class DcMotor(PeriodicDrive):
         self._fast = bool(getattr(kernel, "fast", False))
         self._eig_cache = {}       # per (R_total, L, K, J_eq, b): kept when only an input changes
         self._full_cache = {}
-        self._plans = OrderedDict()  # fast engine: PeriodPlan per (schedule, first piece, modes, params)
-        self._flows = OrderedDict()  # fast engine: a piece's delta map per (drive, mode, ticks, params)
+        # fast engine: PeriodPlan per (schedule, first piece, modes, params), a piece's delta map
+        # per (drive, mode, ticks, params)
+        self._plans = SecondSight(PLANS_MAX)
+        self._flows = SecondSight(FLOWS_MAX)
         self._guard_arrays = {}      # fast engine: the plans' stacked guard arrays (PeriodPlan.guard_cache)
         self._linear_parts = {}      # fast engine: powers and modes by period-map linear part (PeriodPlan.linear_cache)
         self._chunk_n = CHUNK_MIN
