@@ -67,3 +67,32 @@ def test_the_rover_at_speed_keeps_no_new_plan_and_the_promini_keeps_its_limit_cy
     promini = mcusim.load("pro-mini", overrides={"velocity": 20})
     promini.run(seconds=1.0)
     assert len(promini.part("motor")._plans) > 0
+
+
+def test_a_guessed_crossing_tick_is_taken_only_where_the_search_finds_that_tick():
+    """After a rebuild the next encoder crossing is first checked at the tick the old trajectory
+    had it (``PeriodicDrive._passive_at``: fired there and not one tick before). Whatever tick is
+    guessed, the check either declines or gives what the full search gives: here the ticks around
+    the true crossing, around the search's start, half-way and at the trajectory's end, on the
+    rover's wheels at speed (in chunks and between them)."""
+    rover = mcusim.load("elementall", overrides={"cmd_vel.linear": 0.5, "cmd_vel.angular": -0.3})
+    rover.run(seconds=0.5)
+    motors = [m["parts"]["motor"] for name, m in rover.members.items() if name.startswith("mcm")]
+    taken = 0
+    for _ in range(40):
+        rover.run(seconds=0.0021)
+        for m in motors:
+            tr = m._traj
+            after = rover.kernel.now - m._t0
+            end = tr.periods * tr.plan.P if tr.kind == "chunk" else m._seg_end
+            guards = [g for prov in m._providers if getattr(prov, "passive_guards", False)
+                      for g in prov.plant_guards()]
+            best, firing = m._first_passive(guards, after)
+            b = after + 100 if best is None else best
+            probes = {after - 1, after, after + 1, after + 2, (after + b) // 2, end - 1, end, end + 1}
+            for n in probes | set(range(b - 3, b + 4)):
+                got = m._passive_at(guards, after, end, n)
+                if got is not None:
+                    assert got == (best, firing)
+                    taken += 1
+    assert taken >= 40

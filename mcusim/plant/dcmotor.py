@@ -211,6 +211,7 @@ class DcMotor(PeriodicDrive):
         self._rebuild_ev = None
         self._ev_passive = None    # fast engine: next passive guard (encoder threshold) in a segment
         self._passive = ()
+        self._passive_hint = None    # fast engine: a tick the next encoder crossing may be at
         self._seg_end = 0
         self._set_params(self.params)
         self._sync()
@@ -610,7 +611,11 @@ class DcMotor(PeriodicDrive):
         if self._ev is not None:
             self._ev.cancel()
             self._ev = None
+        # the tick of the next encoder crossing located on the old trajectory: where the new one's
+        # is, nearly always (a guess that _find_passive checks, whatever its origin)
+        self._passive_hint = None
         if self._ev_passive is not None:
+            self._passive_hint = self._ev_passive.time
             self._ev_passive.cancel()
             self._ev_passive = None
         self._pending = None

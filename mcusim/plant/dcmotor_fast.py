@@ -248,9 +248,35 @@ class PeriodicDrive:
             return
         guards = [g for prov in self._providers if getattr(prov, "passive_guards", False)
                   for g in prov.plant_guards()]
-        best, firing = self._first_passive(guards, after)
+        hint, self._passive_hint = self._passive_hint, None
+        got = None if hint is None else self._passive_at(guards, after, end, hint - self._t0)
+        best, firing = got or self._first_passive(guards, after)
         if best is not None:
             self._schedule_passive(best, end, firing)
+
+    def _passive_at(self, guards, after: int, end: int, n: int):
+        """(n, the guards firing there) where the first of ``guards`` to fire after offset
+        ``after`` fires at offset ``n``, as :meth:`_first_passive` would find it; else None (not
+        settled here). A rebuild at an input change (the rover's battery and body steps, every
+        millisecond) moves the trajectory so little that the next encoder crossing nearly always
+        stays on its tick: the rebuild passes that tick, and two evaluations settle it. The guards
+        are θ-only and θ is monotone on the trajectory up to ``end`` (as for the search), so a
+        guard fired at n and not at n − 1 first fires at n; one fired at n − 1 fires earlier."""
+        if not after < n - 1 < end or self._s == 0:
+            return None
+        tr = self._traj
+        x1, x0 = self._at(tr, n), self._at(tr, n - 1)
+        s = self._s
+        hval, fired = pwl.hval, pwl.fired
+        firing = []
+        for g in guards:
+            if g[2] * s > 0.0:
+                continue            # θ moves away from it (the search skips it too)
+            if fired(g, hval(g, x0)):
+                return None
+            if fired(g, hval(g, x1)):
+                firing.append(g)
+        return (n, firing) if firing else None
 
     def _schedule_passive(self, best: int, end: int, firing) -> None:
         """The passive ``firing`` guards fire at offset ``best`` of the trajectory ending at ``end``."""
