@@ -2,6 +2,8 @@
 a value is kept only for a key that came before, least recently used dropped first, memory bounded.
 What a cache holds never changes a result (test_engine_equality), only how often a plan is built."""
 
+from collections import Counter
+
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -96,3 +98,26 @@ def test_a_guessed_crossing_tick_is_taken_only_where_the_search_finds_that_tick(
                     assert got == (best, firing)
                     taken += 1
     assert taken >= 40
+
+
+def test_a_timer_update_that_moves_both_inputs_of_an_l6206_rebuilds_its_motor_once():
+    """Reversing, the nucleo-f746's timer update republishes both inputs of a bridge in one event.
+    The L6206 hands the change to its motor when that event returns, with both pins moved: one
+    plan per tick and motor (52 ticks of its first second had two, the first thrown away). The
+    engines' results stay equal (test_engine_equality: the nucleo bench command and scenarios)."""
+    from mcusim.plant import dcmotor
+
+    sim = mcusim.load("nucleo-f746", overrides={"/motor1/set_pos": 9.42478, "/motor2/set_pos": -1.5708})
+    per_tick = Counter()
+    rebuild = dcmotor.DcMotor._rebuild
+
+    def counted(self):
+        per_tick[(sim.kernel.now, self.name)] += 1
+        return rebuild(self)
+    dcmotor.DcMotor._rebuild = counted
+    try:
+        sim.run(seconds=1.0)
+    finally:
+        dcmotor.DcMotor._rebuild = rebuild
+    assert len(per_tick) > 500
+    assert max(per_tick.values()) == 1
