@@ -135,6 +135,24 @@ def test_memory_reads_reach_ram_and_peripherals_through_the_models():
     assert sim.firmware.topic("/ticks") > 1000                  # the write to RAM stuck
 
 
+MALFORMED = ["m0,zz", "m20000000", "m-1,4", "m20000000,4,4", "pzz", "P0=zz", "P=00", "Gzz",
+             "M20000000,zz:00", "M20000000,2:zz", "M20000000,2:00", "M20000000,2", "Z0,zz,2",
+             "z0,1", "Zx,20000000,2", "Z2,20000000,0", "c12g4", "sx"]
+
+
+def test_a_packet_whose_fields_do_not_parse_gets_an_error_reply_and_the_session_goes_on():
+    """The remote protocol's convention for a request the stub cannot carry out: ``E NN``. Each
+    malformed packet (bad hex, fields missing or extra, a write whose data is not as long as it
+    says, an empty watch range) is answered E01; the next request is served as usual."""
+    def script(c, syms, out):
+        out["replies"] = {p: c.ask(p) for p in MALFORMED}
+        out["after"] = c.ask(f"m{syms['ticks']:x},4")
+        c.ask("D")
+    _, out = session(script, duration="5ms")
+    assert out["replies"] == {p: "E01" for p in MALFORMED}
+    assert len(out["after"]) == 8 and not out["after"].startswith("E")
+
+
 def test_watchpoints_on_ram_and_on_a_peripheral_register():
     def script(c, syms, out):
         c.ask(f"Z2,{syms['ticks']:x},4")

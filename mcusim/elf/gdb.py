@@ -64,6 +64,28 @@ def _checksum(data: bytes) -> bytes:
     return b"%02x" % (sum(data) & 0xFF)
 
 
+class _Malformed(Exception):
+    """A packet whose fields do not parse (answered ``E01``)."""
+
+
+def _hex_ints(text: str, n: int):
+    """``n`` comma-separated hexadecimal numbers (the fields of ``m``, ``M``, ``Z`` ... packets)."""
+    parts = text.split(",")
+    if len(parts) != n or not all(x and x.strip(_HEX) == "" for x in parts):
+        raise _Malformed(text)
+    return tuple(int(x, 16) for x in parts)
+
+
+_HEX = "0123456789abcdefABCDEF"
+
+
+def _hex_bytes(text: str) -> bytes:
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise _Malformed(text) from None
+
+
 class GdbServer:
     def __init__(self, sim, port: int, host: str = "127.0.0.1"):
         core = sim.mcu.cpu
@@ -240,7 +262,10 @@ class GdbServer:
                 return
             if _TRACE:
                 print(f"gdb> {pkt.decode('latin-1')[:80]}", file=sys.stderr)
-            reply = self._handle(pkt.decode("latin-1"))
+            try:
+                reply = self._handle(pkt.decode("latin-1"))
+            except _Malformed:
+                reply = "E01"         # a packet that does not parse: an error reply, the session goes on
             if reply is _RESUME:
                 self._skip_bp = self.core.reg("pc")
                 self.halted = False
@@ -260,7 +285,7 @@ class GdbServer:
         if p.startswith("qSupported"):
             return "PacketSize=4000;qXfer:features:read+;swbreak+;vContSupported+"
         if p.startswith("qXfer:features:read:target.xml:"):
-            off, length = (int(x, 16) for x in p.rsplit(":", 1)[1].split(","))
+            off, length = _hex_ints(p.rsplit(":", 1)[1], 2)
             chunk = TARGET_XML[off:off + length]
             return ("l" if off + length >= len(TARGET_XML) else "m") + chunk
         if p == "qAttached":
@@ -276,37 +301,42 @@ class GdbServer:
         if p == "g":
             return "".join(self._reg_hex(r) for r in REGS)
         if p.startswith("G"):
-            data, pos = bytes.fromhex(p[1:]), 0
+            data, pos = _hex_bytes(p[1:]), 0
             for r in REGS:
                 if pos + _size(r) <= len(data):
                     self._set_reg(r, int.from_bytes(data[pos:pos + _size(r)], "little"))
                 pos += _size(r)
             return "OK"
         if p.startswith("p"):
-            n = int(p[1:], 16)
+            n, = _hex_ints(p[1:], 1)
             return self._reg_hex(REGS[n]) if n < len(REGS) else "E00"
         if p.startswith("P"):
-            n, v = p[1:].split("=")
-            if int(n, 16) >= len(REGS):
+            n, _, v = p[1:].partition("=")
+            n, = _hex_ints(n, 1)
+            if n >= len(REGS):
                 return "E00"
-            self._set_reg(REGS[int(n, 16)], int.from_bytes(bytes.fromhex(v), "little"))
+            self._set_reg(REGS[n], int.from_bytes(_hex_bytes(v), "little"))
             return "OK"
         if p.startswith("m"):
-            addr, length = (int(x, 16) for x in p[1:].split(","))
+            addr, length = _hex_ints(p[1:], 2)
             try:
                 return self._read_mem(addr, length).hex()
             except (BusFault, McusimError, OSError):
                 return "E01"
         if p.startswith("M"):
-            head, data = p[1:].split(":")
-            addr, _ = (int(x, 16) for x in head.split(","))
+            head, colon, data = p[1:].partition(":")
+            addr, length = _hex_ints(head, 2)
+            data = _hex_bytes(data)
+            if not colon or len(data) != length:
+                raise _Malformed(p)
             try:
-                self._write_mem(addr, bytes.fromhex(data))
+                self._write_mem(addr, data)
             except (BusFault, McusimError, OSError):
                 return "E01"
             return "OK"
         if p[:1] in "Zz" and len(p) > 3:
-            return self._point(p[0] == "Z", int(p[1]), *(int(x, 16) for x in p[3:].split(",")[:2]))
+            kind, addr, length = _hex_ints(p[1:], 3)
+            return self._point(p[0] == "Z", kind, addr, length)
         if p == "vCont?":
             return "vCont;c;C;s;S"
         if p.startswith("vCont;"):
@@ -316,11 +346,11 @@ class GdbServer:
             return _RESUME
         if p.startswith("c"):
             if len(p) > 1:
-                self._set_reg("pc", int(p[1:], 16))
+                self._set_reg("pc", _hex_ints(p[1:], 1)[0])
             return _RESUME
         if p.startswith("s"):
             if len(p) > 1:
-                self._set_reg("pc", int(p[1:], 16))
+                self._set_reg("pc", _hex_ints(p[1:], 1)[0])
             self.stepping = True
             return _RESUME
         if p.startswith("D"):
@@ -386,6 +416,8 @@ class GdbServer:
             uc.ctl_remove_cache(addr, addr + 4)
             return "OK"
         if kind in (2, 3, 4):
+            if length < 1:
+                return "E01"          # (unicorn would take an empty range for every address)
             name = {2: "watch", 3: "rwatch", 4: "awatch"}[kind]
             key = (name, addr, length)
             if insert and key not in self.watchpoints:
