@@ -217,6 +217,10 @@ def test_rover_faults_battery_estop_and_a_silent_module(tmp_path):
     with pytest.raises(ConfigError, match="rover.toml:.*no board 'mcm9'"):
         p.write_text(p.read_text().replace('"mcm2"', '"mcm9"'))
         run_scenario(p)
+    # the controller is the bus master (its I2C0's slave mode is not modelled): nothing to silence
+    with pytest.raises(ConfigError, match="rover.toml:12: .*board 'rcm' has no I2C slave interface"):
+        p.write_text(p.read_text().replace('"mcm9"', '"rcm"'))
+        run_scenario(p)
 
 
 # --- expectations ---------------------------------------------------------------------------------

@@ -97,7 +97,7 @@ class I2cSilent(FaultKind):
         if member is None:
             raise sc._err(line, f"{where}: no board {name!r} (boards: {', '.join(sim.members)})")
         twis = [p for p in member["mcu"].periph.values()
-                if hasattr(p, "i2c_address") and hasattr(getattr(p, "bus", None), "detach")]
+                if getattr(p, "i2c_slave", False) and hasattr(getattr(p, "bus", None), "detach")]
         if not twis:
             raise sc._err(line, f"{where}: board {name!r} has no I2C slave interface")
         return twis

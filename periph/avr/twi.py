@@ -54,6 +54,7 @@ NO_INFO = 0xF8
 
 
 class Twi(Peripheral):
+    i2c_slave = True    # answers a master on its bus (the scenario fault i2c_silent can silence it)
     BUS_WIDTH = 1
     ACCESS_SIZES = (1,)
     REGISTERS = (

@@ -108,6 +108,7 @@ def _mask(name, offset):
 
 
 class I2c(Peripheral):
+    i2c_slave = False   # a master: its slave mode is not modelled (refused when addressed)
     BUS_WIDTH = 4
     ACCESS_SIZES = (4,)
     REGISTERS = (
