@@ -83,6 +83,16 @@ def test_bench_refuses_a_duration_off_the_base_tick(capsys):
                  "--duration 10.00001ms: not a whole number of base ticks")
 
 
+def test_a_scenario_duration_off_the_base_tick_is_named_at_its_line(tmp_path, capsys):
+    """The file's own duration is checked as its other times are (it used to be blamed on a
+    --duration that was never given); a --duration given instead replaces it."""
+    sc = tmp_path / "frac.toml"
+    sc.write_text('[scenario]\nboard = "nucleo-f746"\nduration = "10.3ns"\n')
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(sc)],
+                 "frac.toml:3: [scenario]: duration = 10.3ns is not a whole number of base ticks")
+    assert main(["run", "nucleo-f746", "--scenario", str(sc), "--duration", "1ms", "-q"]) == 0
+
+
 def test_a_register_log_file_is_announced_like_the_other_outputs(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["run", "nucleo-f746", "--duration", "1ms", "--register-log", "r.jsonl"]) == 0

@@ -358,3 +358,14 @@ def test_a_number_check_of_a_topic_that_is_a_table_is_a_usage_error_naming_its_f
     assert "odo.toml:5" in err and "odometry is a table (x, y, yaw)" in err and 'summary = "odometry.x"' in err
     sc.write_text(sc.read_text().replace('topic = "odometry"', 'summary = "odometry.x"'))
     assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 0
+
+
+def test_run_scenario_refuses_a_run_longer_than_its_limit_as_the_command_line_does():
+    """docs/scenarios.md: a scenario's duration may be at most 600 s unless the limit is raised
+    (``mcusim run --max-duration``; ``max_duration=`` here)."""
+    with pytest.raises(ConfigError, match=r"duration 700s is longer than the limit of 600s \(raise it with max_duration=\)"):
+        run_scenario("step_response", duration="700s")
+    with pytest.raises(ConfigError, match="limit of 1ms"):
+        run_scenario("step_response", duration="2ms", max_duration="1ms")
+    sim, _ = run_scenario("step_response", duration="2ms", max_duration="1s")
+    assert sim.time_s == pytest.approx(0.002)

@@ -78,6 +78,7 @@ class Scenario(Checker):
         if self._duration <= 0:
             raise self._err(self._line("scenario", None, "duration"), "[scenario]: duration must be positive")
         self.file_duration = self._duration
+        self._duration_given = False     # set by --duration or the API instead of the file
         # times in the file may reach the end of the run it is given: its own duration, or a longer
         # --duration (a shorter one leaves the later expectations not reached, as documented)
         self._horizon = max(self._duration, self._run_for or 0)
@@ -174,6 +175,7 @@ class Scenario(Checker):
         if d <= 0:
             raise ConfigError(f"{self.path}: duration must be positive, not {value!r}")
         self._duration = d
+        self._duration_given = True
 
     def duration_line(self) -> int:
         """The line of ``duration`` in the file (for messages about it)."""
@@ -238,6 +240,8 @@ class Scenario(Checker):
                             f"the scenario is meant for board {self.board!r}, not {sim.board_name!r}"
                             f"{self._no_such_board()}")
         tb, kernel = sim.timebase, sim.kernel
+        if not self._duration_given:      # (a --duration is checked where it is given)
+            self._ticks(tb, self._duration, self.duration_line(), "[scenario]: duration")
         end = tb.ticks(self._duration, rounding=True)
         plan = []                                    # (tick, prio, fn): scheduled once all is checked
         self._turns, self._stalls, self._sag_loads = {}, {}, {}
