@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import time as _wall
 from collections.abc import Mapping
@@ -108,7 +109,8 @@ class Simulation:
         if sum(given) != 1:
             raise McusimError("run() takes exactly one of cycles=, seconds=, until=, until_tick=")
         if cycles is not None:
-            if int(cycles) != cycles or cycles < 0:
+            if isinstance(cycles, bool) or not (isinstance(cycles, numbers.Integral) or (
+                    isinstance(cycles, float) and cycles.is_integer())) or cycles < 0:
                 raise McusimError(f"run(cycles={cycles!r}): expected a whole number of cycles >= 0")
             end = self.kernel.now + self.mcu.core_clock.cycles(int(cycles))
         elif seconds is not None:
@@ -216,16 +218,24 @@ class Simulation:
             yield from member["mcu"].periph.values()
 
     # --- traces -------------------------------------------------------------------------------------
+    def _sample_of(self, what: str, sample):
+        """A trace's ``sample``: a number of seconds or a duration with a unit (a string without
+        one, ``"50"``, is refused as run(seconds=...) refuses it, not taken as 50 s)."""
+        if isinstance(sample, bool) or (isinstance(sample, str) and _bare_number(sample)):
+            raise ConfigError(f"{what}(sample={sample!r}): expected a number of seconds or a duration "
+                              "with a unit (\"50us\"), as the command line and scenarios take it")
+        return sample
+
     def trace_vcd(self, path, sample="50us"):
         from .trace import VcdTrace
-        tr = VcdTrace(self, path, sample=sample)
+        tr = VcdTrace(self, path, sample=self._sample_of("trace_vcd", sample))
         self._traces.append(tr)
         return tr
 
     def trace_csv(self, path=None, sample="1ms", keep: bool = False):
         """Plant and firmware variables on a uniform grid (:class:`mcusim.csvtrace.CsvTrace`)."""
         from .csvtrace import CsvTrace
-        tr = CsvTrace(self, path, sample=sample, keep=keep)
+        tr = CsvTrace(self, path, sample=self._sample_of("trace_csv", sample), keep=keep)
         self._traces.append(tr)
         return tr
 

@@ -23,6 +23,10 @@ def bare():
     ({"seconds": 1e300}, "beyond the last tick"),
     ({"seconds": 1e-12}, "shorter than half a base tick"),
     ({"seconds": 0.001, "stop": 5}, "stop is a function"),
+    ({"cycles": "x"}, "expected a whole number of cycles"),
+    ({"cycles": float("nan")}, "expected a whole number of cycles"),
+    ({"cycles": float("inf")}, "expected a whole number of cycles"),
+    ({"cycles": True}, "expected a whole number of cycles"),
 ])
 def test_run_refuses_a_time_it_would_not_run_as_asked(bare, kw, words):
     now = bare.kernel.now
@@ -73,6 +77,8 @@ def test_a_written_register_reads_back_through_the_checked_api(bare):
     (lambda s, d: s.trace_vcd(d / "x.vcd", sample=0), "at least one base tick"),
     (lambda s, d: s.trace_vcd(d / "x.vcd", sample="1ps"), "at least one base tick"),
     (lambda s, d: s.trace_vcd(d / "x.vcd", sample="soon"), "bad duration"),
+    (lambda s, d: s.trace_vcd(d / "x.vcd", sample="50"), "a duration with a unit"),     # not 50 s
+    (lambda s, d: s.trace_csv(d / "x.csv", sample="1"), "a duration with a unit"),
     (lambda s, d: s.trace_vcd(d), "is a folder"),
     (lambda s, d: s.trace_vcd(d / "no" / "x.vcd"), "cannot write it"),
     (lambda s, d: s.trace_csv(d / "no" / "x.csv"), "cannot write it"),
