@@ -537,7 +537,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
             firmware = mcu.cpu.run_code(lambda: cls(mcu, **params))
         except BaseException as exc:
             for task in mcu.rtos.tasks:        # tasks it created will never run: end them quietly
-                task.coro.close()
+                task.close()
             if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], str):
                 raise ConfigError(f"{where}: firmware {kind.name} needs {exc.args[0]!r}, which the profile "
                                   f"does not declare (peripherals: {', '.join(mcu.periph)})") from None
@@ -547,7 +547,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         missing = [m for m in ("publish", "topic") if not callable(getattr(firmware, m, None))]
         if missing:
             for task in mcu.rtos.tasks:
-                task.coro.close()
+                task.close()
             raise ConfigError(f"{where}: firmware kind {kind.name!r} ({kind.origin}) is not a firmware: "
                               f"it has no {' or '.join(missing)}()")
     elif firmware_params:

@@ -149,9 +149,16 @@ class IsrContext(Context):
 class Task(Context):
     def __init__(self, name, coro, priority):
         super().__init__(name)
-        self.coro, self.priority = coro, priority
-        if hasattr(coro, "close"):
-            _unstarted.add(coro)
+        self.priority = priority
+        if callable(coro) and not hasattr(coro, "send"):
+            # the task's function (xTaskCreate's pvTaskCode, with its parameter bound): its
+            # coroutine is made at the task's first step, so a simulation loaded and never run
+            # leaves none behind (Python warns about a coroutine that was never awaited)
+            self.coro, self._make = None, coro
+        else:
+            self.coro, self._make = coro, None
+            if hasattr(coro, "close"):
+                _unstarted.add(coro)
         self.state = "ready"  # ready | blocked | done
         self.wake_tick = None
         self.started = False
@@ -167,6 +174,13 @@ class Task(Context):
         coro = getattr(self, "coro", None)
         if coro is not None and coro in _unstarted:
             coro.close()
+
+    def close(self) -> None:
+        """End the task's coroutine (a simulation that will not run on); a task that never ran
+        and was given its function has none."""
+        self._make = None
+        if self.coro is not None:
+            self.coro.close()
 
 
 # the task coroutines not started yet: closed at exit, where a simulation loaded and never run
@@ -486,7 +500,9 @@ class Rtos:
         self._wfi_blocked = 0   # tasks blocked in wait_for_interrupt (interrupt_done wakes them)
 
     def create_task(self, name: str, coro, priority: int) -> Task:
-        """xTaskCreate: the task is ready and runs when the scheduler picks it."""
+        """xTaskCreate: the task is ready and runs when the scheduler picks it. ``coro`` is its
+        function (called with no argument at its first step: bind a parameter with
+        ``functools.partial``) or a coroutine already made."""
         t = Task(name, coro, priority)
         self.tasks.append(t)
         if self.kernel is not None:
@@ -578,6 +594,12 @@ class Rtos:
             task.remaining, task.on_done = 0, self._step
             return
         result, task.result = task.result, None
+        if task.coro is None:
+            if task._make is None:          # closed before it ran
+                task.state = "done"
+                self._switch()
+                return
+            task.coro, task._make = task._make(), None
         _unstarted.discard(task.coro)       # its first step: awaited from here on
         try:
             req = self.cpu.run_code(task.coro.send, result)

@@ -98,7 +98,7 @@ def close_firmware_tasks(members: dict) -> None:
     for ns in members.values():
         rtos = ns["mcu"].rtos
         for task in (rtos.tasks if rtos is not None else ()):
-            task.coro.close()
+            task.close()
 
 
 def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, kernel, buses, external):

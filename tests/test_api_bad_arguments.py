@@ -127,3 +127,19 @@ def test_feed_takes_any_byte_buffer_and_load_takes_none_for_no_firmware():
     sim = mcusim.load("nucleo-f746", firmware=None)
     assert sim.firmware is None
     sim.close()
+
+
+def test_a_simulation_loaded_and_dropped_without_running_leaves_no_warning():
+    """Each firmware's tasks are given as functions (xTaskCreate's pvTaskCode): their coroutines
+    are made at their first step, so dropping a simulation that never ran leaves no "coroutine
+    ... was never awaited" (it did for every board, and failed tests run with -W error)."""
+    import subprocess
+    import sys
+    code = ("import gc, mcusim\n"
+            "for b in ('nucleo-f746', 'pro-mini', 'ciaa-edu', 'elementall'):\n"
+            "    s = mcusim.load(b)\n"
+            "    del s\n"
+            "    gc.collect()\n")
+    out = subprocess.run([sys.executable, "-W", "error", "-c", code], check=False, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr

@@ -15,6 +15,7 @@ spin, as rclc_executor_spin_some would find it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 from mcusim.fw.controlmotor import VARIANTS
 from mcusim.fw.controlmotor.encoder import (
@@ -152,9 +153,9 @@ class ControlMotorFirmware:
             encoder_timn_start(self.enc[b])
         # FreeRTOS: tasks, then vTaskStartScheduler (SysTick at configTICK_RATE_HZ)
         self.cpu.vector(cortex.SysTick_IRQn, self.rtos.systick_handler, cost=self.p["cycles_systick"])
-        self.rtos.create_task("pid_a", self.pid_task(BRIDGE_A), priority=3)
-        self.rtos.create_task("pid_b", self.pid_task(BRIDGE_B), priority=3)
-        self.rtos.create_task("microros", self.microros_task(), priority=2)
+        self.rtos.create_task("pid_a", partial(self.pid_task, BRIDGE_A), priority=3)
+        self.rtos.create_task("pid_b", partial(self.pid_task, BRIDGE_B), priority=3)
+        self.rtos.create_task("microros", self.microros_task, priority=2)
         cortex.HAL_SYSTICK_Config(dev, SystemCoreClock // configTICK_RATE_HZ)
 
     def MX_GPIO_Init(self) -> None:

@@ -117,7 +117,7 @@ class OpenRoverMcm:
         # reads it (loop()'s first lines), so the fast engine may serve it (mcusim.engine.ticks)
         self._idle_pass = self.core.idle_pass(
             self.p["cycles_loop_idle"], lambda ms: (ms - self._last_ms) & 0xFFFFFFFF < self.p["sample_ms"])
-        self.rtos.create_task("arduino", self.main(), priority=1)
+        self.rtos.create_task("arduino", self.main, priority=1)
 
     # --- main() of the Arduino core: init(); setup(); for (;;) loop(); ---------------------------
     async def main(self):

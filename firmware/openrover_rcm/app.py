@@ -209,10 +209,10 @@ class RoverControl:
         self._stream_ev = None
         self.i2c = None
         self.link = None
-        self.rtos.create_task("motor_control", self.motor_control(), priority=100)
-        self.rtos.create_task("battery_monitor", self.battery_monitor(), priority=50)
-        self.rtos.create_task("mavlink", self.mavlink_task(), priority=45)
-        self.rtos.create_task("status", self.status_task(), priority=40)
+        self.rtos.create_task("motor_control", self.motor_control, priority=100)
+        self.rtos.create_task("battery_monitor", self.battery_monitor, priority=50)
+        self.rtos.create_task("mavlink", self.mavlink_task, priority=45)
+        self.rtos.create_task("status", self.status_task, priority=40)
 
     # --- start-up (nx_start → board init → rover_control main) -------------------------------
     def _ms(self, ms: int) -> int:
