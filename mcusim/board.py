@@ -99,7 +99,13 @@ def parse_value(text: str):
     if low in ("false", "off", "no"):
         return False
     if "," in text or (low.startswith("[") and low.endswith("]")):   # a list: 8,9 or [8, 9]
-        items = [t for t in text.strip().strip("[]").split(",") if t.strip()]
+        inner = stripped[1:-1] if low.startswith("[") and low.endswith("]") else stripped
+        if not inner.strip():
+            return []
+        items = inner.split(",")
+        if not all(t.strip() for t in items):
+            raise ConfigError(f"{text!r}: an empty item in a list (two commas in a row, or a comma "
+                              "at an end); write the items as 8,9,10")
         return [parse_value(t) for t in items]
     if low.startswith(("0x", "-0x", "0b", "0o")):
         try:

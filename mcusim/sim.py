@@ -30,7 +30,13 @@ class Simulation:
         if bad:
             raise ConfigError(f"overrides: key {bad[0]!r} is not text; keys are --set keys such as "
                               '"motor1.R" or "/motor1/set_pos"')
-        overrides = {k: (parse_value(v) if isinstance(v, str) else v) for k, v in (overrides or {}).items()}
+        parsed = {}
+        for k, v in (overrides or {}).items():
+            try:
+                parsed[k] = parse_value(v) if isinstance(v, str) else v
+            except ConfigError as exc:
+                raise ConfigError(f"{k} = {exc}") from None
+        overrides = parsed
         profile, where = read_profile(board)
         if is_system(profile) and not isinstance(firmware, bool):
             raise ConfigError(f"{where}: a system runs its boards' own firmware; give an ELF to one board "

@@ -81,6 +81,14 @@ def test_an_empty_trace_filter_is_refused_under_its_own_name(capsys):
 def test_set_values_take_lists_and_hex_integers():
     assert parse_value("8,9") == [8, 9] and parse_value("[8, 9]") == [8, 9]
     assert parse_value("0x08") == 8 and parse_value("0b101") == 5
+    assert parse_value("[]") == [] and parse_value("[ 8 ]") == [8]
+
+
+@pytest.mark.parametrize("value", ["8,,9,10,11", "8,9,10,11,", ",8,9", "[8,,9]", "[8,9,]"])
+def test_a_list_with_an_empty_item_is_refused_naming_its_key(capsys, value):
+    """A doubled or stray comma is a typo, not a shorter list (it was dropped silently)."""
+    msg = _one_error(capsys, ["run", "ciaa-edu", "--duration", "1ms", "-q", "--set", f"firmware.modules={value}"])
+    assert msg.startswith(f"mcusim: error: firmware.modules = {value!r}: an empty item in a list"), msg
 
 
 def test_a_fault_found_during_the_run_says_when(capsys):
