@@ -360,6 +360,20 @@ def test_a_number_check_of_a_topic_that_is_a_table_is_a_usage_error_naming_its_f
     assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 0
 
 
+@pytest.mark.parametrize("source, needle", [
+    ('summary = "firmware.motors_enabled"', "firmware.motors_enabled is true or false, and min needs a number"),
+    ('summary = "pose"', "pose is a table (x, y, yaw), and min needs a number"),
+])
+def test_a_number_check_of_a_summary_flag_or_table_is_a_usage_error(tmp_path, capsys, source, needle):
+    """As for topics: False >= 0 holds as numbers, so the run FAILed a check that read as wrong
+    (exit 1) where the scenario asked a flag or a table for a number."""
+    sc = tmp_path / "flag.toml"
+    sc.write_text(f'[scenario]\nboard = "elementall"\nduration = "20ms"\n[[expect]]\n{source}\nmin = 0\n')
+    assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "flag.toml:5" in err and needle in err
+
+
 def test_run_scenario_refuses_a_run_longer_than_its_limit_as_the_command_line_does():
     """docs/scenarios.md: a scenario's duration may be at most 600 s unless the limit is raised
     (``mcusim run --max-duration``; ``max_duration=`` here)."""

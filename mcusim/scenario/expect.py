@@ -247,10 +247,16 @@ def plan_expect(sc, sim, e: _Expect, end: int) -> tuple:
         raise sc._err(e.line, f"{where}: time {_fmt_time(e.time)} is already past")
     test = CHECKS[next(iter(e.check))]
     numeric = next(iter(e.check)) in ("approx", "min", "max")
-    if numeric and e.source[0] in ("topic", "part"):
-        now = read()            # (topics and part values are read without side effects)
+    if numeric and e.source[0] in ("topic", "part", "summary"):
+        # (topics and part values are read without side effects; the summary before the run has
+        # its shape and the types of its values: a flag stays a flag, a table a table)
+        now = read()
+        label = ".".join(e.source[1:])
+        if isinstance(now, bool):
+            raise sc._err(sc._line("expect", e.index, e.source[0]),
+                          f"{where}: {label} is true or false, and {next(iter(e.check))} needs a number: "
+                          f"check it with equals = true or equals = false")
         if isinstance(now, dict):
-            label = ".".join(e.source[1:])
             fields = ", ".join(map(str, now))
             raise sc._err(sc._line("expect", e.index, e.source[0]),
                           f"{where}: {label} is a table ({fields}), and {next(iter(e.check))} needs a "
