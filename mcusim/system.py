@@ -144,7 +144,7 @@ def _check_owned_loads(members: dict, member_sets: dict, specs: list, profile, w
             raise _located(profile, where, f"member {name}: set: {key}: {msg}", "member", index, "set", key)
 
 
-def _check_unique_params(members: dict, where: str) -> None:
+def _check_unique_params(members: dict, where: str, profile=None) -> None:
     """Firmware parameters declared ``unique`` (a bus address) must differ between the boards,
     else two slaves answer one address: a configuration error, found before the run."""
     seen: dict = {}
@@ -158,8 +158,12 @@ def _check_unique_params(members: dict, where: str) -> None:
             other = seen.setdefault((tag, value), name)
             if other != name:
                 shown = f"{value:#04x}" if isinstance(value, int) else repr(value)
-                raise ConfigError(f"{where}: {other} and {name} both have firmware.{key} = {shown}; "
-                                  f"each board needs its own")
+                msg = f"{other} and {name} both have firmware.{key} = {shown}; each board needs its own"
+                index = next((i for i, m in enumerate((profile or {}).get("member", [])) if m.get("name") == name),
+                             None)
+                if profile is None or index is None:
+                    raise ConfigError(f"{where}: {msg}")
+                raise _located(profile, where, msg, "member", index)
 
 
 def _build_system_parts(profile, where, part_params, members, link_nets, kernel) -> dict:
@@ -173,15 +177,20 @@ def _build_system_parts(profile, where, part_params, members, link_nets, kernel)
     for pin, target in profile.get("pins", {}).items():
         member, _, pin_name = pin.partition(".")
         if member not in members:
-            raise ConfigError(f"{where}: [pins] {pin!r}: no member {member!r}")
+            raise _located(profile, where, f"[pins] {pin!r}: no member {member!r} (members: "
+                           f"{', '.join(members)})", "pins", None, pin)
         part, _, term = target.partition(".")
         try:
             net = members[member]["mcu"].pin(pin_name)
         except ConfigError as exc:
             raise _located(profile, where, f"[pins] {pin!r}: {exc}", "pins", None, pin) from None
         wiring.setdefault(part, {})[term.upper()] = net
+    declared = [sp.get("name") for sp in profile.get("part", [])]
     for source, net in link_nets.items():
         part, _, term = source.partition(".")
+        if part not in declared:
+            raise _located(profile, where, f"[links] {source!r} names part {part!r}, which is not declared "
+                           f"(parts: {', '.join(sorted(str(d) for d in declared if d))})", "links", None, source)
         wiring.setdefault(part, {})[term.upper()] = net
     try:
         sys_parts = build_parts(kernel, profile.get("part", []), part_params, wiring, where, lookup=lookup)
@@ -294,12 +303,13 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         raise ConfigError(f"{where}: every [[member]] needs a distinct name")
     main = system.get("main", names[0])
     if main not in names:
-        raise ConfigError(f"{where}: [system] main = {main!r} is not a member ({', '.join(names)})")
+        raise _located(profile, where, f"[system] main = {main!r} is not a member ({', '.join(names)})",
+                       "system", None, "main")
     member_profiles = {}
     clocks = []
     for i, m in enumerate(specs):
         if "board" not in m:
-            raise ConfigError(f"{where}: member {m['name']}: missing board = \"...\"")
+            raise _located(profile, where, f"member {m['name']}: missing board = \"...\"", "member", i)
         try:
             prof, pwhere = read_profile(m["board"])
         except ConfigError as exc:      # a board the system names: at the line that names it
@@ -307,7 +317,8 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                 raise               # a mistake inside that board's own file: its file:line first
             raise _located(profile, where, f"[[member]] {m['name']}: {exc}", "member", i, "board") from None
         if is_system(prof):
-            raise ConfigError(f"{where}: member {m['name']}: {m['board']} is a system, not a board")
+            raise _located(profile, where, f"member {m['name']}: {m['board']} is a system, not a board",
+                           "member", i, "board")
         if m.get("plant", True) is False:   # the board alone; the system provides its plant
             prof = {k: v for k, v in prof.items() if k not in ("part", "pins", "analog")}
         member_profiles[m["name"]] = (prof, pwhere)
@@ -354,7 +365,7 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
                     raise _located(profile, where, f"member {name}: set: {msg}", "member", index, "set",
                                    key) from None
                 raise exc from None
-        _check_unique_params(members, where)
+        _check_unique_params(members, where, profile)
         sys_parts = _build_system_parts(profile, where, part_params, members, link_nets, kernel)
         _check_owned_loads(members, member_sets, specs, profile, where)
     except Exception:

@@ -239,12 +239,28 @@ def test_a_reference_to_a_part_of_the_wrong_kind_names_the_line_and_the_kind(tmp
     # were the lines of unrelated [[part]] tables
     ('"estop.ENABLE_IN"', '"estopp.ENABLE_IN"', "[pins] names part 'estopp', which is not declared"),
     ('"estop.SENSE"', '"estop.SENSEX"', "part estop (estop) has no terminal SENSEX"),
+    # was "[pins] names part 'nope'" at the line of the [[part]] battery table
+    ('"estop.ENABLE_OUT" =', '"nope.ENABLE_OUT" =', "[links] 'nope.ENABLE_OUT' names part 'nope', which is not declared"),
+    # these had no line
+    ('main = "rcm"', 'main = "nope"', "[system] main = 'nope' is not a member (rcm, mcm1, mcm2, mcm3, mcm4)"),
+    ('"rcm.GPIO3_3" =', '"xx.GPIO3_3" =', "[pins] 'xx.GPIO3_3': no member 'xx' (members: rcm, mcm1"),
+    ('board = "pro-mini"', 'board = "elementall"', "member mcm1: elementall is a system, not a board"),
 ])
 def test_a_system_parts_reference_of_the_wrong_kind_names_the_line(tmp_path, capsys, old, new, needle):
     """Were "load 'motor' is not a bridge", "'ibt2' is not a wheel motor" and "unknown board" without
     file:line."""
     err, line = _edited_run_error(tmp_path, capsys, "elementall", old, new, "s.toml")
     assert f"s.toml:{line}: {needle}" in err, err
+
+
+def test_two_modules_on_one_bus_address_are_named_at_the_second_ones_table(tmp_path, capsys):
+    """Had no line: the mistake is in the member whose address repeats an earlier one's."""
+    text = shipped_text("elementall")
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace('"firmware.i2c_address" = 0x09', '"firmware.i2c_address" = 0x08', 1))
+    err = _err(capsys, ["run", str(p), "--duration", "1ms"])
+    table = text[:text.index('name = "mcm2"')].count("\n")      # the [[member]] line above it
+    assert f"s.toml:{table}: mcm1 and mcm2 both have firmware.i2c_address = 0x08" in err, err
 
 
 def test_a_usart_without_its_interrupt_line_names_the_table_and_the_lines_it_may_take(tmp_path, capsys):
