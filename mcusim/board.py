@@ -13,7 +13,14 @@ from fractions import Fraction
 from pathlib import Path
 
 from . import kinds
-from .board_checks import AVR_IO, check_irq_numbers, check_pins_have_ports, missing_args, part_driving
+from .board_checks import (
+    AVR_IO,
+    check_irq_numbers,
+    check_memory_clear_of_peripherals,
+    check_pins_have_ports,
+    missing_args,
+    part_driving,
+)
 from .board_checks import located as _located
 from .errors import ConfigError, McusimError, read_input
 from .firmware import Cpu, Rtos
@@ -375,7 +382,6 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         from .elf.setup import attach_memories, check_elf_board
         elf = resolve_firmware(elf)
         image, memories = check_elf_board(profile, where, elf)
-        attach_memories(bus, memories)
     if avr:
         irq = AvrInterrupts(num_vectors=core.get("vectors", 26))
     else:
@@ -437,6 +443,9 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         free = {a for _, a, *_ in UNITS + STORAGE if bus.peripheral_at(a) is None}
         bus.attach_registers(0, AvrUnmodelled("ATmega328P", free))
     check_pins_have_ports(profile, where, mcu)
+    check_memory_clear_of_peripherals(profile, where, bus)
+    if elf is not None:         # (after the peripherals: a region over one is named at its own line)
+        attach_memories(bus, memories)
     # [pull]: board-level pull resistors on pins (an active-low button's pull-up)
     for pin_name, level in profile.get("pull", {}).items():
         if level not in (0, 1):

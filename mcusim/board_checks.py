@@ -28,6 +28,23 @@ def located(profile, where: str, msg: str, table=None, index=None, *key) -> Conf
     return ConfigError(f"{where}: {msg}")
 
 
+def check_memory_clear_of_peripherals(profile, where, bus) -> None:
+    """No [[memory]] region (at its base or an alias) lies over a peripheral's registers: a
+    compiled image's accesses there would reach one or the other. Checked whether or not the run
+    loads an image, so a board file is accepted or refused alike."""
+    entries = getattr(bus, "_entries", ())
+    for i, spec in enumerate(profile.get("memory", [])):
+        size = spec.get("size")
+        for key, b in [("base", spec.get("base"))] + [("aliases", a) for a in spec.get("aliases", [])]:
+            if not isinstance(b, int) or not isinstance(size, int):
+                continue
+            for lo, n, periph in entries:
+                if b < lo + n and lo < b + size:
+                    raise located(profile, where, f"[[memory]] {spec.get('name')}: {b:#010x}-{b + size - 1:#010x} "
+                                  f"overlaps peripheral {periph.name} at {lo:#010x}-{lo + n - 1:#010x}",
+                                  "memory", i, key)
+
+
 def check_pins_have_ports(profile, where, mcu) -> None:
     """Every pin a peripheral named (an external interrupt's ``pins``) is a pin of a declared port:
     a peripheral creates the pins it names, so a misspelt one (``PD9``) would be a pin of its own

@@ -210,7 +210,7 @@ def _check_board_tables(prof: Profile) -> None:
 
 def _check_memory(prof: Profile) -> None:
     """[[memory]]: name, base, size (4 KiB multiples: the core maps pages), kind, aliases."""
-    spans = []
+    spans, names = [], set()
     for i, spec in enumerate(_array(prof, "memory")):
         where = f"[[memory]] #{i + 1}"
         _known(prof, spec, ("name", "base", "size", "kind", "aliases"), where, "memory", i)
@@ -218,6 +218,9 @@ def _check_memory(prof: Profile) -> None:
             if key not in spec:
                 raise prof.err(f"{where}: missing {key} = ...", "memory", i)
         name = _name(prof, spec["name"], f"{where} name", "memory", i, "name")
+        if name in names:
+            raise prof.err(f"{where}: name {name!r} is taken by another [[memory]] table", "memory", i, "name")
+        names.add(name)
         where = f"[[memory]] {name}"
         if spec["kind"] not in MEMORY_KINDS:
             raise prof.err(f"{where}: kind = {_show(spec['kind'])}: expected one of {', '.join(MEMORY_KINDS)}",

@@ -413,3 +413,17 @@ def test_mistakes_found_while_building_name_the_profiles_line(tmp_path, capsys, 
     how, marker, message = located
     line = _table_line(text, marker) if how == "table" else text[:text.index(marker)].count("\n") + 1
     assert f"b.toml:{line}: {message}" in err, err
+
+
+@pytest.mark.parametrize("old, new, needle", [
+    # was accepted without --firmware, and with it blamed on the TIM1 table ("overlaps another peripheral")
+    ("base = 0x2004C000", "base = 0x40010000",
+     "[[memory]] SRAM2: 0x40010000-0x40013fff overlaps peripheral TIM1 at 0x40010000-0x400103ff"),
+    # was accepted
+    ('name = "SRAM2"', 'name = "SRAM1"', "[[memory]] #5: name 'SRAM1' is taken by another [[memory]] table"),
+])
+def test_a_memory_region_over_a_peripheral_or_named_twice_is_named_at_its_line(tmp_path, capsys, old, new, needle):
+    err, line = _edited_run_error(tmp_path, capsys, "nucleo-f746", old, new, "m.toml")
+    assert f"m.toml:{line}: {needle}" in err, err
+    p = tmp_path / "m.toml"     # the same with a compiled image: the file is refused alike
+    assert _err(capsys, ["run", str(p), "--duration", "1ms", "--firmware", "controlmotor"]) == err
