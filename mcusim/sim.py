@@ -72,7 +72,10 @@ class Simulation:
                         member["firmware"].publish(name, value)
                     except ConfigError as exc:
                         if len(self.members) > 1:
-                            raise with_member(exc, mname, [name]) from None
+                            named = with_member(exc, mname, [name])
+                            if str(named) == str(exc):      # a message that does not start with the key
+                                named = ConfigError(f"--set {mname}.{name}: {exc}")
+                            raise named from None
                         raise
             for name, value in topics:
                 self.publish(name, value)

@@ -383,3 +383,16 @@ def test_run_scenario_refuses_a_run_longer_than_its_limit_as_the_command_line_do
         run_scenario("step_response", duration="2ms", max_duration="1ms")
     sim, _ = run_scenario("step_response", duration="2ms", max_duration="1s")
     assert sim.time_s == pytest.approx(0.002)
+
+
+def test_an_unknown_system_input_lists_the_boards_whose_own_inputs_a_scenario_may_give(tmp_path, capsys):
+    """'mcm2.velocity' is taken, so the message about 'mcm9.velocity' names that form and the
+    boards, not only the controller's inputs; a module's unknown --set input keeps its board."""
+    sc = tmp_path / "in.toml"
+    sc.write_text('[scenario]\nboard = "elementall"\nduration = "5ms"\n[[at]]\ntime = "1ms"\n'
+                  'publish = { "mcm9.velocity" = 5 }\n')
+    assert main(["run", "elementall", "--scenario", str(sc), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "in.toml:6:" in err and "a board's own input as <board>.<input>, boards: mcm1, mcm2, mcm3, mcm4" in err
+    assert main(["run", "elementall", "--duration", "1ms", "-q", "--set", "mcm2.nope=1"]) == 2
+    assert capsys.readouterr().err.startswith("mcusim: error: --set mcm2.nope: no input 'nope'")

@@ -55,7 +55,8 @@ class Publish(Action):
         msgs = []
         for topic, value in spec.items():
             fw, name = sc._firmware_for(sim, topic, line, where)
-            sc._check_input(fw, name, line, where, value)
+            others = [m for m, ns in sim.members.items() if ns["firmware"] is not sim.firmware]
+            sc._check_input(fw, name, line, where, value, others if fw is sim.firmware else ())
             msgs.append((fw, name, topic, value))
 
         def fn():

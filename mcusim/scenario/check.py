@@ -119,14 +119,19 @@ class Checker:
             raise self._err(line, f"{where}: {topic!r}: the simulation runs without firmware")
         return sim.firmware, topic
 
-    def _check_input(self, fw, name, line, where, value=None):
+    def _check_input(self, fw, name, line, where, value=None, members=()):
+        """``members``: in a system whose main firmware ``fw`` is, the other boards, whose inputs
+        are given as ``<board>.<input>``."""
         topics = getattr(fw, "topics", None)
         if isinstance(topics, dict):
             inputs = [n for n, t in topics.items() if getattr(t, "direction", "sub") == "sub"]
         else:
             inputs = getattr(sys.modules.get(type(fw).__module__), "HOST_INPUTS", None)
         if inputs is not None and name not in inputs:
-            raise self._err(line, f"{where}: the firmware takes no input {name!r} (inputs: {', '.join(inputs)})")
+            more = (f"; a board's own input as <board>.<input>, boards: {', '.join(members)}"
+                    if members else "")
+            raise self._err(line, f"{where}: the firmware takes no input {name!r} (inputs: "
+                            f"{', '.join(inputs)}{more})")
         if value is not None and hasattr(fw, "check_input"):
             try:
                 fw.check_input(name, value)
