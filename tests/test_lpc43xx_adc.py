@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from lpc_rig import CORE_HZ, bare_lpc4337
-from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning
+from mcusim.periph.lpc43xx.adc import Adc, AdcClockWarning, AdcInputWarning
 
 from mcusim.errors import BusFault, McusimError, UnsupportedConfiguration
 from mcusim.signals import AnalogNet
@@ -86,6 +86,7 @@ def ideal(v, bits=10):
     (3.2967773, 1022),
     (5.0, 1023), (-0.2, 0),           # above VDDA reads 0x3FF; below VSSA reads 0
 ])
+@pytest.mark.filterwarnings("ignore::mcusim.periph.lpc43xx.adc.AdcInputWarning")    # 5.0 and -0.2 V
 def test_transfer_function_floor_v_times_1024_over_vdda_exact(vin, code):
     mcu, _adc, nets = make()
     nets[0].set(vin)
@@ -508,3 +509,26 @@ def test_channel_without_analog_net_raises_naming_it():
     with pytest.raises(McusimError, match="channel 6"):
         wr(mcu, CR, PDN | CLKDIV(45) | BURST | 1 << 6 | 1)
     assert rd(mcu, CR) == 0
+
+
+# --- the input range ---------------------------------------------------------------------------------
+
+def test_an_input_outside_0_to_vdda_saturates_and_warns_once_per_channel_and_side():
+    """DS Table 37 (VIA): a pin in analog mode takes 0 V .. VDDA, its absolute maximum. A battery
+    wired without its divider read 1023 without a word; the code still saturates as the transfer
+    function says, and the sample warns (raises with strict)."""
+    mcu, adc, _nets = make((12.75, -0.2))
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        codes = sw_read(mcu, ch=0), sw_read(mcu, ch=1)
+    assert codes == (1023, 0)
+    assert [type(r.message) for r in rec] == [AdcInputWarning] * 2
+    assert [str(r.message) for r in rec] == adc.warnings
+    assert "channel 0 samples 12.75 V, above VDDA (3.3 V)" in adc.warnings[0]
+    assert "channel 1 samples -0.2 V, below 0 V" in adc.warnings[1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert sw_read(mcu, ch=0) == 1023           # once per channel and side
+    mcu, _adc, _nets = make((4.0,), strict=True)
+    with pytest.raises(McusimError, match="channel 0 samples 4 V, above VDDA"):
+        sw_read(mcu, ch=0)

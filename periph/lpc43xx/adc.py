@@ -56,6 +56,9 @@ Modelled
   (:class:`AdcClockWarning`, a UserWarning) once per (PCLK, CLKDIV) pair, appends the message to
   ``self.warnings``, and converts at the programmed clock anyway. Exactly 4.5 MHz is allowed ("must be
   <= 4.5 MHz").
+* An input outside 0 V .. VDDA (the absolute maximum of a pin in analog mode, DS Table 37 VIA):
+  the code saturates (0 or 1023), and the sample warns (:class:`AdcInputWarning`) once per channel
+  and side, or raises McusimError with ``strict=True``: a battery wired without its divider.
 * Flags (§1.2, §1.4): at completion RESULT is written to DRn and GDR (with CHN) and both DONE bits are
   set. In burst mode OVERRUN is set in DRn (GDR) when the result overwrites one whose DONE is still set
   (DONE stays set); OVERRUN stays set until the register is read. In software mode an unread result is
@@ -106,6 +109,10 @@ TRIGGERS = {2: "edge on CTOUT_15", 3: "edge on CTOUT_8", 4: "edge on ADCTRIG0",
 
 class AdcClockWarning(UserWarning):
     """The ADC clock PCLK_ADC / (CLKDIV + 1) is above the 4.5 MHz maximum of the data sheet."""
+
+
+class AdcInputWarning(UserWarning):
+    """A sampled input is outside 0 V .. VDDA, the range of a pin in analog mode."""
 
 
 
@@ -321,7 +328,26 @@ class Adc(Peripheral):
         self._ev_sample = None
         c = self._conv
         net = self.inputs[c.channel]
-        c.result = self.code(_exact(net.voltage(self.kernel.now)), self.vref, c.bits)
+        vin = _exact(net.voltage(self.kernel.now))
+        if not 0 <= vin <= self.vref:
+            self._check_input(c.channel, vin)
+        c.result = self.code(vin, self.vref, c.bits)
+
+    def _check_input(self, channel: int, vin: Fraction) -> None:
+        """An input outside 0 V .. VDDA: beyond the absolute maximum of a pin in analog mode (data
+        sheet Table 37, VIA). The code saturates as the transfer function says; warned once per
+        channel and side (an error with ``strict``): a source wired without its divider."""
+        side = "above VDDA" if vin > self.vref else "below 0 V"
+        msg = (f"{self.name}: channel {channel} samples {float(vin):.4g} V, {side} ({float(self.vref):g} V): "
+               f"outside the input range of a pin in analog mode, 0 V .. VDDA (its absolute maximum, data "
+               f"sheet Table 37); the result saturates at {0 if vin < 0 else 1023}")
+        if self.strict:
+            raise McusimError(msg)
+        key = ("input", channel, side)
+        if key not in self._warned:
+            self._warned.add(key)
+            self.warnings.append(msg)
+            warnings.warn(msg, AdcInputWarning, stacklevel=2)
 
     def _complete(self) -> None:
         c, now = self._conv, self.kernel.now
