@@ -54,7 +54,9 @@ class Profile(dict):
 
 
 def parse_toml(text: str, where: str) -> dict:
-    """TOML text (a profile or a scenario), else one ConfigError naming the file and line."""
+    """TOML text (a profile or a scenario), else one ConfigError naming the file and line. A
+    byte-order mark (which Windows editors put at the start of a UTF-8 file) is skipped."""
+    text = text.removeprefix("\ufeff")
     try:
         return tomllib.loads(text)
     except RecursionError:

@@ -396,3 +396,17 @@ def test_an_unknown_system_input_lists_the_boards_whose_own_inputs_a_scenario_ma
     assert "in.toml:6:" in err and "a board's own input as <board>.<input>, boards: mcm1, mcm2, mcm3, mcm4" in err
     assert main(["run", "elementall", "--duration", "1ms", "-q", "--set", "mcm2.nope=1"]) == 2
     assert capsys.readouterr().err.startswith("mcusim: error: --set mcm2.nope: no input 'nope'")
+
+
+def test_a_file_that_starts_with_a_byte_order_mark_is_read(tmp_path):
+    """Windows editors put a byte-order mark at the start of a UTF-8 file; it was 'invalid TOML:
+    Invalid statement (column 1)'. Scenarios and board profiles skip it."""
+    p = tmp_path / "bom.toml"
+    p.write_bytes(b"\xef\xbb\xbf" + (HEAD + '[[at]]\ntime = "0s"\npublish = { "/motor1/set_pos" = 1.0 }\n').encode())
+    sim, sc = run_scenario(p)
+    assert sc.log and sim.time_s > 0
+    board = tmp_path / "board.toml"
+    import mcusim
+    from mcusim.board import shipped_text
+    board.write_bytes(b"\xef\xbb\xbf" + shipped_text("pro-mini").encode())
+    mcusim.load(str(board)).close()
