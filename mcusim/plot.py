@@ -119,7 +119,7 @@ def plot_run(samples, path=None, title: str | None = None, dpi: int = 100):
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")
     if battery:
-        ax = fig.add_subplot(grid[r, 1 if rover else 0])
+        ax = fig.add_subplot(grid[r, 1] if rover else grid[r, :])     # alone: the whole row
         line(ax, "battery.voltage_v", "terminal voltage", color="tab:blue")
         line(ax, "battery.measured_v", "measured (firmware)", color="tab:orange", drawstyle="steps-post")
         ax.set_xlabel("time (s)")

@@ -422,3 +422,18 @@ def test_sigrok_pwm_decoder_reads_frequency_and_duty_of_a_timer_pin(tmp_path):
     assert len(duties) >= 95 and len(periods) >= 95          # 100 periods in 2 ms
     assert all(d == pytest.approx(30.0, abs=0.01) for d in duties)
     assert all(1 / p == pytest.approx(50_000, rel=1e-3) for p in periods)
+
+
+def test_a_plot_of_the_battery_alone_spans_the_width_of_the_figure(tmp_path):
+    """ciaa-edu on the bench has no motors: its one panel, the battery, took the left half of a
+    two-column grid and left the right half empty."""
+    sim = mcusim.load("ciaa-edu")
+    tr = CsvTrace(sim, None, sample="1ms", keep=True)
+    sim._traces.append(tr)
+    sim.run(seconds="20ms")
+    sim.close()
+    from mcusim.plot import plot_run
+    fig = plot_run(tr)
+    (ax,) = fig.axes
+    assert ax.get_title() == "battery"
+    assert ax.get_subplotspec().colspan == range(2)
