@@ -213,6 +213,8 @@ def fmt_duration(t) -> str:
     t = Fraction(t)
     if t == 0:
         return "0s"
+    if abs(t) < Fraction(1, 10**15):     # below a thousandth of a ps: in seconds (1e-300s, not 1e-288ps)
+        return f"{Decimal(t.numerator) / Decimal(t.denominator):.6g}s"
     for unit, scale in (("s", 1), ("ms", 10**3), ("us", 10**6), ("ns", 10**9), ("ps", 10**12)):
         if abs(t) >= Fraction(1, scale) or unit == "ps":
             v = t * scale

@@ -315,3 +315,13 @@ def test_the_rover_firmware_hint_gives_way_to_the_full_message_for_several_unkno
     err = _usage_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", "firmware.typo=2",
                                 "--set", "firmware.kp=1"], "typo")
     assert "--set mcm1.firmware.kp" not in err
+
+
+@pytest.mark.parametrize("text, shown", [
+    ("1e-300s", "1e-300s"), ("1e-20s", "1e-20s"), ("0.5ps", "0.5ps"), ("2.5ms", "2.5ms"), ("90s", "90s")])
+def test_a_duration_in_a_message_is_shown_in_a_unit_that_reads(text, shown):
+    """Below a thousandth of a picosecond a duration is shown in seconds: --duration 1e-300s was
+    echoed as 1e-288ps."""
+    from mcusim.params import fmt_duration
+    from mcusim.time import parse_duration
+    assert fmt_duration(parse_duration(text)) == shown
