@@ -236,7 +236,8 @@ def _check_memory(prof: Profile) -> None:
             raise prof.err(f"{where}: aliases must be a list of addresses", "memory", i, "aliases")
         for key, b in [("base", spec["base"])] + [("aliases", a) for a in aliases]:
             if isinstance(b, bool) or not isinstance(b, int) or b % 0x1000 or not 0 <= b <= 0x100000000 - size:
-                raise prof.err(f"{where}: {key} {_show(b)}: expected a 0x1000-aligned address with the region "
+                shown = f"{b:#x}" if isinstance(b, int) and not isinstance(b, bool) else _show(b)
+                raise prof.err(f"{where}: {key} {shown}: expected a 0x1000-aligned address with the region "
                                "below 4 GiB", "memory", i, key)
             for other, lo, hi in spans:
                 if b < hi and lo < b + size:

@@ -421,6 +421,9 @@ def test_mistakes_found_while_building_name_the_profiles_line(tmp_path, capsys, 
      "[[memory]] SRAM2: 0x40010000-0x40013fff overlaps peripheral TIM1 at 0x40010000-0x400103ff"),
     # was accepted
     ('name = "SRAM2"', 'name = "SRAM1"', "[[memory]] #5: name 'SRAM1' is taken by another [[memory]] table"),
+    # an address shown as an address (was base 1073888256, and 2.81475e+14)
+    ("base = 0x2004C000", "base = 0x40023C00", "[[memory]] SRAM2: base 0x40023c00: expected a 0x1000-aligned address"),
+    ("base = 0x2004C000", "base = 0xFFFFFFFFF000", "[[memory]] SRAM2: base 0xfffffffff000: expected a 0x1000-aligned"),
 ])
 def test_a_memory_region_over_a_peripheral_or_named_twice_is_named_at_its_line(tmp_path, capsys, old, new, needle):
     err, line = _edited_run_error(tmp_path, capsys, "nucleo-f746", old, new, "m.toml")
