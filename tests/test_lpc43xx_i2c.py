@@ -381,6 +381,8 @@ def test_clearing_i2en_mid_transfer_raises_and_is_allowed_when_idle():
     mcu.kernel.run_until(4 * 10**5)
     w(mcu, CONCLR, I2EN)                       # idle: the block switches off
     assert r(mcu, CONSET) == AA and bus.owner is None
+    w(mcu, CONSET, STO)                        # STO is forced to 0 while I2EN = 0 (it read back 1)
+    assert r(mcu, CONSET) == AA and bus.owner is None
 
 
 def test_addressed_as_slave_with_aa_raises_and_with_aa_clear_is_nacked():

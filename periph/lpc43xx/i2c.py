@@ -65,7 +65,7 @@ Decisions (stated; [I] = inferred, not from the manual)
 * Clearing I2EN (CONCLR.I2ENC) while the block owns the bus, has a primitive under way or a START
   requested raises ``UnsupportedConfiguration`` (on the chip it abandons the transfer without a
   STOP, leaving the slaves mid-transfer; the byte-level bus cannot express that). While idle it
-  disables the block; STO is forced to 0 as the UM says.
+  disables the block; STO is forced to 0 as the UM says (also a CONSET.STO written while I2EN = 0).
 * Writing 1 to CONSET.SI raises (setting SI from software is not modelled). Writing DAT while a
   byte is being shifted (SI = 0) raises: the UM allows DAT access only while SI = 1.
 * Clearing STA after a START was requested does not cancel it (the bus has no cancel) [I].
@@ -176,6 +176,7 @@ class I2c(Peripheral):
                                            "(setting SI from software) is not modelled")
         con = self._con
         if not con & I2EN:
+            self.clear_bits("CONSET", STO)   # forced to 0 while the block is disabled
             self._sync()
             return
         if con & STO and not self._owner and self._inflight is None:
