@@ -100,7 +100,7 @@ def test_a_guessed_crossing_tick_is_taken_only_where_the_search_finds_that_tick(
     assert taken >= 40
 
 
-def test_a_timer_update_that_moves_both_inputs_of_an_l6206_rebuilds_its_motor_once():
+def test_a_timer_update_that_moves_both_inputs_of_an_l6206_rebuilds_its_motor_once(monkeypatch):
     """Reversing, the nucleo-f746's timer update republishes both inputs of a bridge in one event.
     The L6206 hands the change to its motor when that event returns, with both pins moved: one
     plan per tick and motor (52 ticks of its first second had two, the first thrown away). The
@@ -114,10 +114,7 @@ def test_a_timer_update_that_moves_both_inputs_of_an_l6206_rebuilds_its_motor_on
     def counted(self):
         per_tick[(sim.kernel.now, self.name)] += 1
         return rebuild(self)
-    dcmotor.DcMotor._rebuild = counted
-    try:
-        sim.run(seconds=1.0)
-    finally:
-        dcmotor.DcMotor._rebuild = rebuild
+    monkeypatch.setattr(dcmotor.DcMotor, "_rebuild", counted)
+    sim.run(seconds=1.0)
     assert len(per_tick) > 500
     assert max(per_tick.values()) == 1
