@@ -396,3 +396,42 @@ def test_overtemperature_turns_the_half_bridge_off_and_shows_the_fault_current()
     r_en.set("mcu", 0)                        # INH low pulse resets the latch
     r_en.set("mcu", 1)
     assert not b.overtemp and b.legs == ("H", "L")
+
+
+@pytest.mark.parametrize("at", [16_100, 16_500, 17_333])     # in an INH-high phase, at a falling edge, low
+def test_an_inh_waveform_resets_the_thermal_latch_at_its_next_low_edge_in_both_engines(at):
+    """A review found the fast engine never reset the latch while INH carried a timer waveform (its
+    edges reach the bridge as waveform edges, not as pin changes): the half bridge stayed off for
+    good. §2.3: an INH low pulse resets it; both engines now do so at the waveform's next falling
+    edge, and agree on the legs, the latch and IS at every tick sampled and on the motor's end."""
+    from mcusim.engine.waveform import Waveform
+    P, W, end = 800, 400, 16_000 * 5            # INH at 20 kHz, 50 %, for 5 ms
+
+    def run(engine):
+        k = Kernel(TimeBase([FS]), engine)
+        m = DcMotor(k, "m", preset="openrover-100w-50")
+        rpwm, lpwm, r_en, l_en = Net("RPWM"), Net("LPWM"), Net("R_EN"), Net("L_EN")
+        rpwm.set("mcu", 1)
+        lpwm.set("mcu", 0)
+        l_en.set("mcu", 1)
+        r_en.set("mcu", 0)
+        b = Bts7960Bridge(k, m, rpwm, lpwm, r_en, l_en)
+        wave = Waveform(k, 0, P, W)
+        if engine == "fast":
+            k.at(0, lambda: r_en.set_wave("mcu", wave), prio=PRIO_HW)
+        else:
+            k.at(0, r_en.set, "mcu", wave.level_at(0), prio=PRIO_HW)
+            for t, level in wave.edges(0, end):
+                k.at(t, r_en.set, "mcu", level, prio=PRIO_HW)
+        k.at(at, b.overtemperature, "R", prio=PRIO_HW)
+        seen = []
+        for t in (at + 1, at + 399, at + 401, at + 800, 16_000 * 3, end - 1):
+            k.at(t, lambda t=t: seen.append((t, b.overtemp, b.legs, b.is_voltage("R"))), prio=PRIO_OBSERVE)
+        k.run_until(end)
+        return seen, m.current, m.speed
+
+    ref, fast = run("reference"), run("fast")
+    assert [x[:3] for x in fast[0]] == [x[:3] for x in ref[0]]      # digital: exactly
+    assert [x[3] for x in fast[0]] == pytest.approx([x[3] for x in ref[0]], rel=1e-9)     # IS: analog
+    assert not ref[0][-1][1] and ref[1] > 1.0       # the latch was reset and the motor drives again
+    assert fast[1] == pytest.approx(ref[1], rel=1e-9) and fast[2] == pytest.approx(ref[2], rel=1e-9)

@@ -142,6 +142,14 @@ class SteadyDrive:
         self._edge_ev = None
         if self._periodic:
             return
+        now = self.kernel.now
+        for h in self._half.values():
+            # an INH low pulse resets the thermal latch (_on_pin, edge by edge): a falling edge of
+            # an INH waveform at this tick is one
+            w = None if h.en is None else h.en.wave
+            if (h.overtemp and w is not None and (w.end is None or now < w.end) and not h.en.level
+                    and w.next_edge(now - 1) == (now, 0)):
+                self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
         if self.legs != self._legs_seen:
             self._check_now()
             self._record()
