@@ -372,3 +372,41 @@ def test_runtime_load_torque_advances_first_and_changes_the_steady_state():
     i2, w2 = np.linalg.solve([[R_DRIVE, P.K], [P.K, -P.b]], [BR.Vs, P.tau_c + tl])
     assert s.m.speed == pytest.approx(w2, rel=1e-6)
     assert s.m.current == pytest.approx(i2, rel=1e-6)
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_motor_given_a_current_without_a_driver_drops_it_to_zero_and_coasts(engine):
+    """Open terminals carry no current (dcmotor's docstring); a state given one before any bridge
+    attaches turned every variable into NaN (the open circuit's infinite voltages)."""
+    k = Kernel(TimeBase([16_000_000]), engine)
+    m = DcMotor(k, "m", current=1.0, speed=100.0)
+    k.run_until(16_000)
+    assert m.current == 0.0 and 0.0 < m.speed < 100.0 and math.isfinite(m.angle)
+    m.set_state(current=-0.5)
+    k.run_until(32_000)
+    assert m.current == 0.0 and math.isfinite(m.speed) and m.speed > 0.0
+
+
+def test_an_encoder_glitch_lasts_its_width_whatever_crosses_meanwhile():
+    """glitch(): the channel shows the wrong level for ``width`` ticks. A threshold crossing of the
+    other channel used to rewrite both outputs, ending the glitch early and changing A and B at one
+    tick (an illegal quadrature step)."""
+    from mcusim.plant.encoder import _QUAD
+    k = Kernel(TimeBase([1_000_000]))
+    m = DcMotor(k, "m", speed=50.0)          # no driver: coasting from 50 rad/s
+    a, b = Net("A"), Net("B")
+    enc = QuadratureEncoder(k, m, a, b, counts_per_rev=64, name="e")
+    changes, wrong = [], []
+    a.listen(lambda n: changes.append((k.now, "A")))
+    b.listen(lambda n: changes.append((k.now, "B")))
+    k.run_until(1_000)
+    t0, width = k.now, 6_000                 # about three crossings long (~2 ms each at 50 rad/s)
+    enc.glitch("B", width)
+    for t in range(t0 + 500, t0 + width, 500):   # B against its true level inside the glitch
+        k.at(t, lambda: wrong.append(b.level != _QUAD[enc.position & 3][1]))
+    k.run_until(t0 + width + 3_000)
+    assert any(ch == "A" and t0 < t < t0 + width for t, ch in changes)     # A crossed meanwhile
+    assert wrong and all(wrong)              # wrong for the whole width
+    ticks = [t for t, _ in changes]
+    assert len(ticks) == len(set(ticks))     # never both channels at one tick
+    assert b.level == _QUAD[enc.position & 3][1]      # the true level again after it

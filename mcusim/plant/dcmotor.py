@@ -625,7 +625,16 @@ class DcMotor(PeriodicDrive):
             if sched is not None:
                 self._rebuild_periodic(sched, x0)
                 return
-        drive = self._driver.drive_state() if self._driver is not None else OPEN_CIRCUIT
+        if self._driver is None:
+            drive = OPEN_CIRCUIT
+            if x0[0] != 0.0:
+                # open terminals carry no current (module docstring): a current given to the
+                # state (the constructor's, set_state's) lasts this tick only, where a bridge that
+                # attaches now still finds it; the segment runs from i = 0 (the open circuit's
+                # infinite voltages would make a conducting one NaN)
+                x0 = (0.0, x0[1], x0[2])
+        else:
+            drive = self._driver.drive_state()
         tr, es, s = self._new_segment(x0, drive)
         guards = [] if tr.kind == "static" else self._mode_guards(es, s, drive)
         for prov in self._providers:

@@ -148,6 +148,7 @@ class QuadratureEncoder:
         self._retry = None                 # after a stretch: the gap of its decoder (retry after an edge)
         self._retry_ev = None
         self._glitch_ev = None
+        self._glitched = None              # the channel ("A"/"B") a glitch shows wrong, while it lasts
         self._out()
         if getattr(kernel, "fast", False):
             motor.add_guard_provider(_Window(self))
@@ -297,6 +298,12 @@ class QuadratureEncoder:
 
     def _out(self):
         qa, qb = _QUAD[(self.position - self._slip) & 3]
+        g = self._glitched
+        if g is not None:                   # a glitch: its channel shows the wrong level until it ends
+            if g == "A":
+                qa = 1 - qa
+            else:
+                qb = 1 - qb
         self.a.set(self.name, qa)
         self.b.set(self.name, qb)
 
@@ -353,8 +360,8 @@ class QuadratureEncoder:
         schedule. ``first``: the crossing is the event running now. ``span()``: (end tick, wlo,
         whi) of the motor's trajectory if it is a chunk with wlo ≤ |ω| ≤ whi, else None (a counted
         run needs it)."""
-        if self._drop:
-            return None
+        if self._drop or self._glitched is not None:
+            return None             # (a glitch: the outputs are not the position's; edge by edge)
         kernel = self.kernel
         hint = self._serve_hint
         if first and hint is not None:
@@ -389,19 +396,22 @@ class QuadratureEncoder:
             raise ConfigError(f"encoder {self.name}: glitch channel must be 'A' or 'B' and width "
                               f"a positive number of ticks, not {channel!r}, {width!r}")
         self.materialize()
-        net = self.a if channel == "A" else self.b
-        net.set(self.name, 1 - _QUAD[(self._pos - self._slip) & 3][channel == "B"])
         if self._glitch_ev is not None:
             self._glitch_ev.cancel()
+        # (a crossing of either channel meanwhile leaves the glitched one wrong: _out)
+        self._glitched = channel
+        self._out()
         self._glitch_ev = self.kernel.after(int(width), self._glitch_end, prio=PRIO_PLANT)
 
     def _glitch_end(self) -> None:
         self._glitch_ev = None
+        self._glitched = None
         self._out()
 
     def drop_edges(self, n: int) -> None:
-        """Injected fault: the next ``n`` threshold crossings emit no edge (a dirty or damaged
-        disc). The outputs stay a valid quadrature sequence, so a decoder ends up ``n`` counts
+        """Injected fault: the next ``n`` threshold crossings in time emit no edge (missed edges,
+        wherever the shaft is then: not a spot on the disc, which would miss the same angles both
+        ways). The outputs stay a valid quadrature sequence, so a decoder ends up ``n`` counts
         behind (in the direction of those crossings) for good. ``n = 0`` cancels what is left."""
         if int(n) != n or n < 0:
             raise ConfigError(f"encoder {self.name}: drop_edges({n!r}) needs a whole number >= 0")
