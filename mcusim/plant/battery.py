@@ -55,8 +55,11 @@ the average supply current of the *previous* step. Consequences:
   0.68 for four locked motors on one battery. Below 1 the scheme is stable by the small-gain
   argument and the lag error decays geometrically within a few steps; the armature inductance
   (τe ≈ 1.7 ms with the loop resistance) also lets only ≈ 1/4 of a voltage change through to the
-  next step's average current, so even a DC gain above 1 settles (four locked motors on one
-  battery through 0.1 Ω of wiring, DC gain 2.7: ringing for ≈ 15 steps, then the exact value).
+  next step's average current, so a DC gain somewhat above 1 still settles (four locked motors
+  on one battery through 0.1 Ω of wiring, DC gain 2.7: ringing for ≈ 15 steps, then the exact
+  value). Much higher gains do not: with 0.2 Ω of wiring (gain 5) the bus voltage keeps swinging
+  (0.8-4.2 V at 60 ms against an exact 2.1 V). Such a bank cannot run those motors anyway; keep
+  N_motors·(R0/n + wiring)/R_loop below ≈ 3 (a review measured these cases).
 - The SOC/OCV and v1 changes within a step (µV) are ignored, and so is the voltage dependence of
   a load's current within the step.
 

@@ -28,7 +28,7 @@ MOTOR_PRESETS: dict[str, dict[str, float]] = {
         "tau_c": 1.54e-3,     # N·m          [I] (1.5 mN·m rounded)
         "b": 6.3e-7,          # N·m·s/rad    [I]
         "tau_s": 5.0e-3,      # N·m          [I from V: "≤ 5 mN·m"]
-        "gear_ratio": 30.0,   #              [V: 30:1 variant]
+        "gear_ratio": 30.0,   #              [I: the 30:1 catalogue variant; the one fitted is not stated]
         "efficiency": 0.78,   #              [I: η₂ of §1.3 for 30:1]
         "load_inertia": 0.0,  # kg·m² output [none]
         "load_torque": 0.0,   # N·m output

@@ -1,7 +1,7 @@
 """Skid-steer (or differential-drive) rover body coupled to its wheel motors (docs/plants.md
 §1.4 "Vehicle", §1.5; kinematics after Mandow et al. 2007, turning resistance after Wong).
 
-Frame (REP 103, as :mod:`mcusim.fw.openrover_rcm.kinematics`): x forward, y to the left, yaw
+Frame (REP 103, as the controller firmware's kinematics, ``firmware/openrover_rcm/kinematics.py``): x forward, y to the left, yaw
 counter-clockwise positive. Wheel i belongs to side ``sides[i]`` ("L"/"R"); ``directions[i]``
 (+1 default, −1 for a mirrored motor) maps the motor's output rotation to forward wheel rotation.
 
