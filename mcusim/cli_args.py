@@ -58,9 +58,9 @@ EXAMPLES_BENCH = """examples:
   mcusim bench nucleo-f746 --repeat 3
   mcusim bench elementall --duration 1s --json bench.json
 
-the board runs the fixed command of its profile's [bench.set] table; the figures are those of
-the median run. exit status: 0; 1 the firmware reported a fault (the figures are printed, and
-listed under "faults" in --json); 2 a usage error.
+the board runs the fixed command of its profile's [bench.set] table (else [run.set]); the
+figures are those of the median run. exit status: 0; 1 the firmware reported a fault (the figures
+are printed, and listed under "faults" in --json); 2 a usage error.
 """
 
 
