@@ -372,3 +372,26 @@ def test_any_transaction_sequence_follows_the_datasheet(ops, reply, scl_hz, cost
     assert w.statuses == exp_status
     assert w.received == exp_rx
     assert [s for _, s in twi.status_log] == exp_status
+
+
+def test_twdr_holds_the_address_byte_received_at_a_match():
+    """Datasheet (TWDR): the latest byte received on the bus, so SLA+W (0x60), SLA+R (0xA8) or the
+    general call address (0x70) after a match; firmware answering several addresses through TWAMR
+    reads which one from it (it read the reset value 0xFF)."""
+    mcu, _twi, _i2c, m = make()
+    seen = []
+
+    def on_line(vector, level):
+        if vector == 24 and level:
+            seen.append((mcu.read8(TWSR) & 0xF8, mcu.read8(TWDR)))
+            mcu.kernel.after(0, mcu.write8, TWCR, TWEN | TWIE | TWEA | TWINT)
+    mcu.irq.line_listeners.append(on_line)
+    mcu.write8(TWAR, (0x08 << 1) | 1)          # TWGCE = 1
+    mcu.write8(TWAMR, 0x02 << 1)               # address bit 1 is don't-care: 0x08 and 0x0A match
+    mcu.write8(TWCR, TWEN | TWIE | TWEA)
+    m.write(0x0A, b"\x05")
+    m.write(0x00, b"\x06")
+    m.read(0x08, 1)
+    mcu.kernel.run_until(3 * 10**6)
+    firsts = [x for x in seen if x[0] in (0x60, 0x70, 0xA8)]
+    assert firsts == [(0x60, 0x0A << 1), (0x70, 0x00), (0xA8, (0x08 << 1) | 1)]

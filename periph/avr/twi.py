@@ -143,11 +143,15 @@ class Twi(Peripheral):
             if read or not self.value["TWAR"] & 1:
                 return False
             self.state, self.general_call = "sr", True
+            self.value["TWDR"] = 0x00           # the byte received: the general call address
             self._status(0x70)
             return True
         if (addr7 ^ twa) & ~(self.value["TWAMR"] >> 1) & 0x7F:
             return False
         self.general_call = False
+        # TWDR holds the latest byte received, here SLA+R/W: a slave answering several addresses
+        # (TWAMR) reads which one from it
+        self.value["TWDR"] = (addr7 << 1) | (1 if read else 0)
         if read:
             self.state = "st"
             self._status(0xA8)
