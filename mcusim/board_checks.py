@@ -32,7 +32,7 @@ def check_memory_clear_of_peripherals(profile, where, bus) -> None:
     """No [[memory]] region (at its base or an alias) lies over a peripheral's registers: a
     compiled image's accesses there would reach one or the other. Checked whether or not the run
     loads an image, so a board file is accepted or refused alike."""
-    entries = getattr(bus, "_entries", ())
+    entries = bus.ranges()
     for i, spec in enumerate(profile.get("memory", [])):
         size = spec.get("size")
         for key, b in [("base", spec.get("base"))] + [("aliases", a) for a in spec.get("aliases", [])]:

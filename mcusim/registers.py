@@ -242,6 +242,10 @@ class Bus:
         self._readers.clear()
         self._writers.clear()
 
+    def ranges(self) -> list:
+        """(base, size, peripheral) of every attached peripheral, by address."""
+        return list(self._entries)
+
     def attach(self, base: int, periph: Peripheral, size: int | None = None) -> None:
         size = periph.SIZE if size is None else size
         i = bisect.bisect(self._bases, base)

@@ -64,6 +64,9 @@ def _checksum(data: bytes) -> bytes:
     return b"%02x" % (sum(data) & 0xFF)
 
 
+_HEX = "0123456789abcdefABCDEF"
+
+
 class _Malformed(Exception):
     """A packet whose fields do not parse (answered ``E01``)."""
 
@@ -74,9 +77,6 @@ def _hex_ints(text: str, n: int):
     if len(parts) != n or not all(x and x.strip(_HEX) == "" for x in parts):
         raise _Malformed(text)
     return tuple(int(x, 16) for x in parts)
-
-
-_HEX = "0123456789abcdefABCDEF"
 
 
 def _hex_bytes(text: str) -> bytes:

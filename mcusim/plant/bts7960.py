@@ -470,10 +470,14 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
             self._record()
         self.motor._change(do)
 
+    def _reset_overtemp(self, h) -> None:
+        """An INH low pulse on half ``h``: its thermal latch is reset (§2.3)."""
+        self.motor._change(lambda: (setattr(h, "overtemp", False), self._record()))
+
     def _on_pin(self, net):
         for h in self._half.values():  # an INH low pulse resets the thermal latch
             if h.overtemp and h.en is net and not net.level:
-                self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
+                self._reset_overtemp(h)
         if self.kernel.fast and (self._periodic or self._waves()):
             if self._schedule_stands():
                 return

@@ -149,7 +149,7 @@ class SteadyDrive:
             w = None if h.en is None else h.en.wave
             if (h.overtemp and w is not None and (w.end is None or now < w.end) and not h.en.level
                     and w.next_edge(now - 1) == (now, 0)):
-                self.motor._change(lambda h=h: (setattr(h, "overtemp", False), self._record()))
+                self._reset_overtemp(h)
         if self.legs != self._legs_seen:
             self._check_now()
             self._record()

@@ -80,11 +80,6 @@ class SecondSight:
         seen.add(h)
         order.append(h)
 
-    def clear(self) -> None:
-        self._d.clear()
-        self._seen.clear()
-        self._order.clear()
-
 
 class PeriodicDrive:
     """Mixin of DcMotor (uses its state: _x0, _t0, _traj, _providers, _driver, params ...)."""

@@ -252,13 +252,17 @@ class Adc(Peripheral):
         msg = (f"{self.name}: ADC clock {_mhz(f)} MHz = PCLK_ADC {_mhz(hz)} MHz / (CLKDIV {clkdiv} + 1) "
                f"is above the 4.5 MHz maximum (data sheet Table 37); CLKDIV >= {min_div} keeps it "
                f"at or below 4.5 MHz")
+        self._limit(msg, (hz, clkdiv), AdcClockWarning)
+
+    def _limit(self, msg: str, key, category) -> None:
+        """A specification limit exceeded: McusimError with ``strict``, else one warning per
+        ``key`` (appended to ``self.warnings`` as well)."""
         if self.strict:
             raise McusimError(msg)
-        key = (hz, clkdiv)
         if key not in self._warned:
             self._warned.add(key)
             self.warnings.append(msg)
-            warnings.warn(msg, AdcClockWarning, stacklevel=2)
+            warnings.warn(msg, category, stacklevel=3)
 
     # --- register hooks ------------------------------------------------------------------------
     def _write_cr(self, old: int, new: int) -> None:
@@ -341,13 +345,7 @@ class Adc(Peripheral):
         msg = (f"{self.name}: channel {channel} samples {float(vin):.4g} V, {side} ({float(self.vref):g} V): "
                f"outside the input range of a pin in analog mode, 0 V .. VDDA (its absolute maximum, data "
                f"sheet Table 37); the result saturates at {0 if vin < 0 else 1023}")
-        if self.strict:
-            raise McusimError(msg)
-        key = ("input", channel, side)
-        if key not in self._warned:
-            self._warned.add(key)
-            self.warnings.append(msg)
-            warnings.warn(msg, AdcInputWarning, stacklevel=2)
+        self._limit(msg, ("input", channel, side), AdcInputWarning)
 
     def _complete(self) -> None:
         c, now = self._conv, self.kernel.now
