@@ -157,7 +157,7 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "stm32-tim", "mcusim.periph.stm32.tim:Tim", _P(
         irqs=_Table(("brk", "update", "trg_com", "cc"), _IRQ, doc="NVIC lines of the timer's events"),
         counter_bits=Param(16, choices=(16, 32), doc="counter width"),
-        advanced=Param(False, doc="TIM1/TIM8: BDTR, RCR, complementary outputs"),
+        advanced=Param(False, doc="TIM1/TIM8: RCR and BDTR.MOE (no complementary outputs, dead time or break)"),
         arr_reset=Param(0, min=0, max=0xFFFFFFFF, doc="ARR after reset")),
         "STM32 general-purpose and advanced timer", needs=("base", "clock")),
     Kind("peripheral", "stm32-gpio", "mcusim.periph.stm32.gpio:Gpio", _P(port=_PORT),

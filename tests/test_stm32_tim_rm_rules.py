@@ -86,3 +86,81 @@ def test_centre_aligned_mode_cannot_be_set_while_the_counter_runs_edge_aligned_o
     with pytest.raises(UnsupportedConfiguration, match="SMS = 0x3 with a centre-aligned counter"):
         m.write32(TIM3 + SMCR, 3)
     sim.close()
+
+
+# --- centre-aligned counter writes and a frozen OCxREF (a model review) ------------------------
+
+def _centre_rig(engine, cnt_first=10):
+    from tim_oracle import Rig
+    r = Rig("TIM3", 108, engine=engine)
+    r.w("ARR", 99)
+    r.w("CR1", 1 << 5)                  # CMS = 01
+    r.w("EGR", 1)
+    r.w("SR", 0)
+    r.w("CR1", (1 << 5) | 1)
+    r.run(cnt_first)
+    return r
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+def test_a_centre_aligned_counter_written_above_arr_keeps_counting_up(engine):
+    """RM "Hints on using center-aligned mode" (RM0008, RM0016): "The direction is not updated if
+    you write in the counter a value greater than the auto-reload value. For example, if the
+    counter was counting up, it continues to count up." The model had turned it down at once.
+    Our choice [INF] for what follows: it rolls over from 0xFFFF to 0 with no update event and
+    overflows at ARR as usual."""
+    r = _centre_rig(engine)
+    assert (r.r("CR1") >> 4) & 1 == 0
+    r.w("CNT", 200)
+    seq = []
+    for _ in range(3):
+        r.run(1)
+        seq.append(r.r("CNT"))
+    assert seq == [201, 202, 203] and (r.r("CR1") >> 4) & 1 == 0
+    r.run(0xFFFF - 203)
+    assert r.r("CNT") == 0xFFFF and r.r("SR") & 1 == 0
+    r.run(1)
+    assert r.r("CNT") == 0 and r.r("SR") & 1 == 0 and (r.r("CR1") >> 4) & 1 == 0   # no UEV
+    r.run(99)
+    assert r.r("CNT") == 99 and r.r("SR") & 1 == 1 and (r.r("CR1") >> 4) & 1 == 1   # overflow at ARR
+    r.run(1)
+    assert r.r("CNT") == 98
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+@pytest.mark.parametrize("written, dir_after, next_cnt", [(99, 1, 98), (0, 0, 1)])
+def test_writing_arr_or_zero_into_a_centre_aligned_counter_sets_the_direction_without_an_update(
+        engine, written, dir_after, next_cnt):
+    """Same hint: "The direction is updated if you write 0 or write the TIMx_ARR value in the
+    counter but no Update Event UEV is generated"."""
+    r = _centre_rig(engine, 150)        # counting down from ARR at CNT 48
+    r.w("SR", 0)
+    r.w("CNT", written)
+    assert (r.r("CR1") >> 4) & 1 == dir_after and r.r("SR") & 1 == 0
+    r.run(1)
+    assert r.r("CNT") == next_cnt
+
+
+@pytest.mark.parametrize("engine", ["reference", "fast"])
+@pytest.mark.parametrize("advanced", [False, True])
+def test_frozen_mode_keeps_the_comparison_level_of_an_output_that_was_not_driven(engine, advanced):
+    """OCxREF comes from the comparison whatever CCxE (and MOE) say; they only gate the pin. Frozen
+    mode keeps OCxREF as it is: PWM1 with CNT = 70 >= CCR1 = 50 has it inactive, so enabling the
+    output after the switch to frozen shows 0. The model kept the level of the last time it had
+    planned (active) because a channel not driven gets no match events."""
+    from tim_oracle import Rig
+    r = Rig("TIM1" if advanced else "TIM3", 108, engine=engine)
+    r.w("ARR", 99)
+    r.w("EGR", 1)
+    r.w("SR", 0)
+    r.w("CCR1", 50)
+    r.w("CCMR1", 0x60)                  # PWM1
+    if advanced:
+        r.w("CCER", 1)                  # CC1E set, MOE = 0: not driven either
+    r.w("CR1", 1)
+    r.run(70)
+    r.w("CCMR1", 0x00)                  # frozen
+    r.w("CCER", 1)
+    if advanced:
+        r.w("BDTR", 1 << 15)
+    assert r.tim.oc[1].value == 0

@@ -41,8 +41,12 @@ Choices where the sheet says [INF]/[UNVERIFIED]
 * OPM (§2.7): CEN is cleared by every UEV (UG included).
 * UEV from UG sets UIF when URS=0 (old-HAL behaviour, §2.5/#30).
 * Up-counting with CNT > ARR (ARR lowered, ARPE=0; open question 6): the counter runs to its maximum
-  and wraps to 0 with an overflow. In centre-aligned mode, CNT >= ARR while counting up turns the
-  counter down at once (no UEV) [both UNVERIFIED].
+  and wraps to 0 with an overflow [UNVERIFIED]. In centre-aligned mode the direction is not updated
+  by a CNT above ARR: counting up, the counter goes on up ("Hints on using center-aligned mode",
+  RM0008/RM0016: "if the counter was counting up, it continues to count up"), runs to its maximum
+  and rolls over to 0 without an update event [INF: neither an overflow, reached at ARR, nor an
+  underflow], then counts up to ARR as usual. Writing ARR or 0 into CNT updates the direction
+  (down from ARR, up from 0) without a UEV, as the hint says.
 * Encoder (§4): SMS=001 counts TI1 edges, 010 TI2 edges (HAL reading). DIR is updated on every decoded
   transition of TI1FP1/TI2FP2 while CEN=1. Input latency: see :mod:`mcusim.periph.stm32.tim_input` (sampled at
   the first CK_INT/f_SAMPLING edge strictly after the pin edge, +2 CK_INT resynchronisation). If TI1 and
@@ -248,7 +252,7 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
             return self._steady_cnt_at(t)
         if t >= self._t_wrap:  # a wrap due now whose event has not run yet
             if self._cms:
-                return self._arr if self._up else 0
+                return self._arr if self._up and self._cnt <= self._arr else 0
             if self._up:
                 return 0
             uev = self._rep == 0 and not self.value["CR1"] & UDIS
@@ -282,6 +286,12 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         """Overflow/underflow at _t_wrap (§2.3); UEV unless UDIS or the repetition count is not 0."""
         self._tb = self._t_wrap
         up, arr_reached = self._up, self._arr
+        if self._cms and up and self._cnt > arr_reached:
+            # centre-aligned, counting up from above ARR: the roll-over from the counter's maximum
+            # to 0 is no overflow (module doc); it goes on up to ARR
+            self._cnt = 0
+            self._plan(tick_up=True)
+            return
         self._count_wrap()
         if self._cms == 0:
             self._cnt = 0 if up else self._arr  # down: ARR reloads before the counter (§2.4)
@@ -367,7 +377,7 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
                 self._pscc = max(0, (now - self._tb) // self._P)
             self._run = run
         if run and self._cms:  # centre-aligned turning points reached by a write (module doc)
-            if up and cnt >= self._arr:
+            if up and cnt == self._arr:
                 up = self._up = False
             elif not up and cnt == 0:
                 up = self._up = True
@@ -389,8 +399,10 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
                 jw = arr - cnt + 1 if cnt <= arr else self.mask - cnt + 1
             else:
                 jw = cnt + 1
+        elif up:
+            jw = arr - cnt if cnt <= arr else self.mask - cnt + 1   # (above ARR: to the roll-over)
         else:
-            jw = arr - cnt if up else cnt
+            jw = cnt
         self._t_wrap = tb + jw * tick
         if steady:  # fast engine: waveforms, lazy flags, a wrap event only when it matters
             if self._wrap_needed():
@@ -429,16 +441,21 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
             if self._en[ch]:
                 self.oc[ch].set(r ^ self._pol[ch])
 
+    def _pwm_ref(self, ch: int) -> bool:
+        """OCxREF of PWM channel ``ch`` now (§3.1): PWM1 is active while CNT < CCRx counting up and
+        while CNT <= CCRx counting down; PWM2 the complement."""
+        c, cnt = self._ccr[ch], self._cnt
+        r = (cnt < c) if self._up else (cnt <= c)
+        return r ^ (self._mode[ch] == PWM2)
+
     def _refresh_outputs(self, keep_waves: bool = False) -> None:
         """OCxREF from the continuous comparison (§3.1), OCx = OCxREF xor CCxP when driven.
         ``keep_waves``: a port's waveform stays (the fast engine republishes it if it changed)."""
-        cnt, up, ref = self._cnt, self._up, self._ref
+        ref = self._ref
         for ch in CHANNELS:
             m = self._mode[ch]
             if m >= PWM1:
-                c = self._ccr[ch]
-                r = (cnt < c) if up else (cnt <= c)
-                ref[ch] = r ^ (m == PWM2)
+                ref[ch] = self._pwm_ref(ch)
             elif m == FORCE_ACTIVE:
                 ref[ch] = 1
             elif m == FORCE_INACTIVE:
@@ -665,6 +682,11 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         # the counter up to now under the old modes (a wrap the fast engine passes here without its
         # event leaves OCxREF as the old mode's comparison, as the wrap event does edge by edge)
         self._sync()
+        for ch, *_ in decoded:
+            if self._mode[ch] >= PWM1:
+                # OCxREF is the comparison's whatever CCxE (and MOE) say, but only a driven output
+                # or an enabled interrupt keeps match events: the level now, which frozen keeps
+                self._ref[ch] = self._pwm_ref(ch)
         for ch, m, pe, icf, icpsc in decoded:
             self._mode[ch], self._ocpe[ch], self._icf[ch], self._icpsc[ch] = m, pe, icf, icpsc
         if not self._check_inputs():
