@@ -17,7 +17,9 @@ LPC43xx USART a wire ``<USART>_TXD`` in its MCU's scope, drawn bit by bit from t
 by :mod:`mcusim.tracebus` (exact edges; see there for the timing and rounding).
 
 Simultaneous changes: the changes of one timestamp are written in the order the variables were
-declared, whatever order the models reported them in, so the two engines write the same bytes.
+declared, whatever order the models reported them in, and only each variable's last value of the
+timestamp (a pin set and cleared again within one tick shows no pulse), so the two engines write
+the same bytes.
 
 Reorder buffer: those buses report a byte when it ends, so its edges lie in the past. Every value
 change therefore goes through a buffer ordered by (tick, arrival) and is written to the VCD once it
@@ -136,10 +138,17 @@ class VcdTrace:
         self._pend.append((self._order[var], len(self._pend), var, value))
 
     def _write_pending(self) -> None:
+        """Each variable's last value of the timestamp: a change undone within one tick is no
+        edge (edge by edge, a compare match and a mode write on one tick set a pin and clear it
+        again; the chip's output changes on clock edges, and the fast engine reports only the
+        outcome), and pyvcd writes nothing for a value that did not change."""
         if self._pend:
             ps, change = self._pend_ps, self.w.change
-            self._pend.sort(key=lambda e: (e[0], e[1]))
-            for _, _, var, value in self._pend:
+            last = {}
+            for order, _, var, value in self._pend:
+                last[order] = (var, value)
+            for order in sorted(last):
+                var, value = last[order]
                 change(var, ps, value)
             self._pend.clear()
 
@@ -281,13 +290,19 @@ class VcdTrace:
         """Write what can no longer change (older than ``now - lag``) and stamp the VCD there."""
         if not self.lag:
             self._expand_waves(now, inclusive=True)
-            self._write_pending()
+            self._write_closed_ticks(now)
             self.w.flush(self._ps(now))
             return
         self._drain(now - self.lag)
-        self._write_pending()
+        self._write_closed_ticks(self._mark)
         if self._mark > self._start:    # (not before: changes at the start still go in $dumpvars)
             self.w.flush(self._ps(self._mark))
+
+    def _write_closed_ticks(self, t: int) -> None:
+        """Write the pending changes unless they are tick ``t``'s, which may still be undone: a
+        register written from Python after a run that ended on a compare match's tick."""
+        if self._pend_ps != self._ps(t) or t <= self._start:
+            self._write_pending()
 
     def close(self, now: int) -> None:
         """Write every change up to ``now`` (later ones, drawn ahead by a bus, are dropped)."""

@@ -8,6 +8,7 @@ import re
 import shutil
 import subprocess
 from fractions import Fraction
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -16,6 +17,7 @@ from hypothesis import strategies as st
 import mcusim
 from mcusim.csvtrace import CsvTrace, read_csv
 from mcusim.errors import ConfigError
+from mcusim.kernel import PRIO_OBSERVE
 from mcusim.reglog import RegisterLog, load_logged
 from mcusim.trace import write_gtkw
 
@@ -437,3 +439,61 @@ def test_a_plot_of_the_battery_alone_spans_the_width_of_the_figure(tmp_path):
     (ax,) = fig.axes
     assert ax.get_title() == "battery"
     assert ax.get_subplotspec().colspan == range(2)
+
+
+def _vcd_changes_per_timestamp(path):
+    """{timestamp: [value change lines]} of a VCD's body."""
+    out, ts = {}, None
+    for line in Path(path).read_text().split("$enddefinitions $end")[1].splitlines():
+        if line.startswith("#"):
+            ts = int(line[1:])
+        elif line and ts is not None and line[0] in "01":
+            out.setdefault(ts, []).append(line)
+    return out
+
+
+def _tim1_pwm2_on_pe9(sim):
+    """TIM1 CH1 on PE9 (AF1) in PWM2, PSC 3, ARR 333, CCR1 100, started."""
+    m = sim.mcu
+    m.write32(GE, (m.read32(GE) & ~(3 << 18)) | (2 << 18))
+    m.write32(GE + 0x24, (m.read32(GE + 0x24) & ~(0xF << 4)) | (1 << 4))
+    for off, v in ((0x28, 3), (0x2C, 333), (0x34, 100), (0x18, 7 << 4), (0x20, 1), (0x44, 1 << 15),
+                   (0x14, 1), (0x00, 1)):
+        m.write32(T1 + off, v)
+    sim.run(cycles=3 * 334 * 4)
+    while m.read32(T1 + 0x24) != 100:           # the first tick of CNT = 100: the match's
+        sim.run(cycles=1)
+    return sim.kernel.now
+
+
+T1, GE = 0x40010000, 0x40021000
+
+
+@pytest.mark.parametrize("engine", ["fast", "reference"])
+@pytest.mark.parametrize("from_python", [False, True])
+def test_a_pin_set_and_cleared_on_one_tick_is_no_pulse_in_the_vcd(tmp_path, engine, from_python):
+    """TIM1 CH1 (PE9) in PWM2 goes active at the compare match CNT = CCR1; OC1M written to PWM1 on
+    that very tick makes it inactive again. The chip's output changes on clock edges: no pulse.
+    Edge by edge the VCD had shown one of zero width (two values of PE9 at one timestamp; a
+    review found it in a compiled image, the fast engine wrote nothing), and so did both engines
+    when the write came from Python after a run that ended on the match."""
+    sim = mcusim.load("nucleo-f746", firmware=False, engine=engine)
+    path = tmp_path / "t.vcd"
+    sim.trace_vcd(path)
+    if from_python:
+        _tim1_pwm2_on_pe9(sim)
+        assert sim.pin("PE9").level == 1
+        sim.mcu.write32(T1 + 0x18, 6 << 4)
+    else:
+        probe = mcusim.load("nucleo-f746", firmware=False, engine=engine)
+        t = _tim1_pwm2_on_pe9(probe)
+        probe.close()
+        # the write inside the run, after the match's event on its tick
+        sim.kernel.at(t, lambda: sim.mcu.write32(T1 + 0x18, 6 << 4), prio=PRIO_OBSERVE)
+        _tim1_pwm2_on_pe9(sim)
+    assert sim.pin("PE9").level == 0
+    sim.run(cycles=4000)
+    sim.close()
+    for ts, lines in _vcd_changes_per_timestamp(path).items():
+        names = [ln[1:] for ln in lines]
+        assert len(names) == len(set(names)), f"two values of one signal at #{ts}: {lines}"
