@@ -21,8 +21,11 @@ def sim():
     s.close()
 
 
-def test_cpuid_is_the_cortex_m7s(sim):
-    assert sim.mcu.read32(0xE000ED00) == 0x411FC270          # r1p0... as the M7 TRM gives for the F7
+def test_cpuid_is_the_stm32f746s_cortex_m7_r0p1(sim):
+    """ES0290: the STM32F74x/75x embed Cortex-M7 r0p1: CPUID 0x410FC271 (implementer 0x41,
+    variant 0, architecture 0xF, part 0xC27, revision 1), the value FreeRTOS's ARM_CM4F port
+    asserts against on these parts. It had read 0x411FC270 (r1p0)."""
+    assert sim.mcu.read32(0xE000ED00) == 0x410FC271
 
 
 def test_vtor_resets_to_the_boot_address_and_moves_the_vector_table(sim):

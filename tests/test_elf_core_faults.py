@@ -96,3 +96,22 @@ def test_an_unaligned_peripheral_access_is_a_fault_naming_address_size_and_block
     sim.close()
     assert what in str(info.value) and f"({function}+0x" in str(info.value)
     assert "TIM3" not in path.read_text()              # no register of the block was accessed
+
+
+@pytest.mark.parametrize("address, kind, hint", [
+    (0x40084004, "cortex-m4", "Peripheral region: a peripheral this board does not model"),   # LPC TIMER0
+    (0x4000480C, "cortex-m7", "Peripheral region: a peripheral this board does not model"),   # STM32 USART3
+    (0x22002014, "cortex-m4", "a bit-band alias: bit-banding is not modelled"),
+    (0x42000000, "cortex-m4", "a bit-band alias"),
+    (0x22002014, "cortex-m7", ""),          # the Cortex-M7 has no bit-banding: just unmapped
+    (0xE0001000 + 0x200, "cortex-m7", "a Cortex-M system register mcusim does not model"),
+    (0x60000000, "cortex-m7", ""),          # external RAM region: no guess
+])
+def test_an_unmapped_access_says_what_the_default_memory_map_has_there(address, kind, hint):
+    """Armv7-M B3.1: 0x40000000-0x5FFFFFFF is the Peripheral region, 0xE0000000-0xE00FFFFF the
+    private peripheral bus; the Cortex-M4 maps bit-band aliases at 0x22000000 and 0x42000000. A
+    review's images writing LPC TIMER0, STM32 USART3 or a bit-band alias had been told only
+    "unmapped memory", which points at the user's pointer rather than at the model."""
+    from mcusim.elf.faults import unmapped_hint
+    got = unmapped_hint(address, kind)
+    assert (hint in got and got) if hint else got == ""

@@ -177,3 +177,46 @@ def test_byte_access_to_timer_register_is_a_bus_fault():
         sim.mcu.write8(TIM1 + ARR, 1)
     sim.mcu.write16(TIM1 + ARR, 0x1234)
     assert sim.mcu.read16(TIM1 + ARR) == 0x1234
+
+
+def test_an_ahb_prescaler_is_refused_as_the_core_and_systick_do_not_follow_it():
+    """RM0385 §5.2: HCLK clocks the core, and SysTick runs on HCLK or HCLK/8. The core and SysTick
+    here count SYSCLK, so HPRE = /2 had slowed only the timers (DWT counted twice the cycles a
+    review measured against TIM1). It is refused, naming the field, and the register keeps its
+    value."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    before = sim.mcu.read32(RCC + 0x08)
+    with pytest.raises(UnsupportedConfiguration, match=r"RCC\.CFGR\.HPRE = 0x8 \(AHB prescaler /2\)"):
+        sim.mcu.write32(RCC + 0x08, before | (0b1000 << 4))
+    assert sim.mcu.read32(RCC + 0x08) == before
+    sim.mcu.write32(RCC + 0x08, before | (0b0111 << 4))     # 0xxx is /1 (RM0385 HPRE table)
+    sim.close()
+
+
+def test_every_documented_clock_enable_bit_reads_back_and_reserved_bits_read_zero():
+    """RM0385 RCC_xxxENR: HAL's __HAL_RCC_USART2_CLK_ENABLE and __HAL_RCC_PWR_CLK_ENABLE set
+    APB1ENR bits 17 and 28, which read back (they had read 0: only the timers' bits were kept);
+    bit 10 is reserved. AHB1ENR has DTCMRAMEN (bit 20) set out of reset."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    m = sim.mcu
+    assert m.read32(RCC + 0x30) == 0x0010_0000
+    m.write32(RCC + 0x40, (1 << 17) | (1 << 28) | (1 << 10))
+    assert m.read32(RCC + 0x40) == 0x1002_0000
+    m.write32(RCC + 0x44, 0xFFFF_FFFF)
+    assert m.read32(RCC + 0x44) == 0x04F7_7F33
+    sim.close()
+
+
+def test_gpio_ports_a_and_b_reset_with_the_debug_pins_in_alternate_function_and_pulled():
+    """RM0385 §6.4 reset values: MODER 0xA800_0000 (port A) and 0x0000_0280 (port B), OSPEEDR
+    0x0C00_0000 and 0x0000_00C0, PUPDR 0x6400_0000 and 0x0000_0100, 0 for the other ports (every
+    register had read 0). The pulls act: PA13 (SWDIO, pull-up) and PA15 read 1 in IDR, PA14
+    (SWCLK, pull-down) 0."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    m = sim.mcu
+    regs = lambda base: [m.read32(base + off) for off in (0x00, 0x08, 0x0C)]
+    assert regs(GPIOA) == [0xA800_0000, 0x0C00_0000, 0x6400_0000]
+    assert regs(GPIOA + 0x400) == [0x0000_0280, 0x0000_00C0, 0x0000_0100]
+    assert regs(GPIOE) == [0, 0, 0]
+    assert m.read32(GPIOA + 0x10) & 0xE000 == 0xA000
+    sim.close()

@@ -92,7 +92,7 @@ class CortexMCore:
 
     def __init__(self, mcu, image, memories, kind="cortex-m7", cpi=1, entry_latency=12, boot_address=None):
         self.mcu, self.kernel, self.bus, self.nvic = mcu, mcu.kernel, mcu.bus, mcu.nvic
-        self.image, self.memories = image, memories
+        self.image, self.memories, self.kind = image, memories, kind
         self.clock = mcu.core_clock
         self.period = mcu.core_clock.period
         self.cpi, self.entry_latency = int(cpi), int(entry_latency)
@@ -445,7 +445,9 @@ class CortexMCore:
                 if access == UC_MEM_WRITE_PROT else ""
             pc = uc.reg_read(A.UC_ARM_REG_PC)
             self._stop = ("fault", address if access == UC_MEM_FETCH_UNMAPPED else pc,
-                          f"{8 * size}-bit {what} memory at {address:#010x}{extra}")
+                          f"{8 * size}-bit {what} memory at {address:#010x}{extra}"
+                          + (faults.unmapped_hint(address, self.kind)
+                             if access in (UC_MEM_READ_UNMAPPED, UC_MEM_WRITE_UNMAPPED) else ""))
         return False
 
     def _on_idle(self, uc, address, size, _):

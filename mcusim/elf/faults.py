@@ -21,6 +21,18 @@ XN_REGIONS = ((0x40000000, 0x60000000, "Peripheral"), (0xA0000000, 0xE0000000, "
               (0xE0000000, 1 << 32, "System"))
 
 
+def unmapped_hint(address, kind) -> str:
+    """Why nothing answers at ``address``, where the default memory map says what lives there:
+    a peripheral the board does not model is more likely than a bad pointer."""
+    if kind == "cortex-m4" and (0x22000000 <= address < 0x24000000 or 0x42000000 <= address < 0x44000000):
+        return " (a bit-band alias: bit-banding is not modelled)"
+    if 0x40000000 <= address < 0x60000000:
+        return " (Peripheral region: a peripheral this board does not model, or a wrong address)"
+    if 0xE0000000 <= address < 0xE0100000:
+        return " (a Cortex-M system register mcusim does not model)"
+    return ""
+
+
 def fetch_fault(address) -> str:
     """An instruction fetch that failed at ``address``: from an Execute Never region, or from
     where there is no code."""

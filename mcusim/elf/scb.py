@@ -18,7 +18,10 @@ from __future__ import annotations
 from ..irq import PENDSV, SYSTICK
 from ..registers import Field, Peripheral, Register
 
-CPUID = {"cortex-m7": 0x411FC270, "cortex-m4": 0x410FC241}
+#: CPUID: the STM32F74x/75x carry Cortex-M7 r0p1 (ST errata sheet ES0290; FreeRTOS ships an
+#: ARM_CM7/r0p1 port for these parts and its portCORTEX_M7_r0p1_ID = 0x410FC271 is what a
+#: port built for the M4 asserts against); the LPC4337's Cortex-M4 is r0p1 (0x410FC241)
+CPUID = {"cortex-m7": 0x410FC271, "cortex-m4": 0x410FC241}
 #: Cortex-M7 with 4 KB two-way instruction and 4 KB four-way data caches of 32-byte lines (the
 #: STM32F74x/75x configuration, RM0385 §2.1): CLIDR (level 1 separate instruction and data caches,
 #: LoUU = LoC = 1) and CTR (32-byte lines) as the Cortex-M7 TRM gives them. A Cortex-M4 has no

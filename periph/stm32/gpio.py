@@ -41,6 +41,14 @@ STM32F746_TIMER_AF = {
 
 _MODE_IN, _MODE_OUT, _MODE_AF, _MODE_ANALOG = 0, 1, 2, 3
 
+# RM0385 §6.4 reset values that are not 0: the debug pins (PA13 SWDIO pull-up, PA14 SWCLK pull-down,
+# PA15 JTDI pull-up, PB3 JTDO/SWO, PB4 NJTRST pull-up) in alternate function 0, very high speed on
+# PA13 and PB3
+_PORT_RESET = {
+    "A": {"MODER": 0xA800_0000, "OSPEEDR": 0x0C00_0000, "PUPDR": 0x6400_0000},
+    "B": {"MODER": 0x0000_0280, "OSPEEDR": 0x0000_00C0, "PUPDR": 0x0000_0100},
+}
+
 
 def _pin_fields(prefix, width):
     return tuple(Field(f"{prefix}{n}", n * width, width) for n in range(32 // width))
@@ -72,6 +80,10 @@ class Gpio(Peripheral):
         self._routes: dict[int, tuple] = {}  # pin -> (timer, channel) while in AF mode
         self._listeners_on: set = set()
         self._otyper_seen = 0
+        reset = _PORT_RESET.get(port)
+        if reset:
+            self.value.update(reset)
+            self._reconfigure(0, 0)     # the debug pins' pulls
 
     # --- registers ------------------------------------------------------------------------
     def _read_idr(self, stored):

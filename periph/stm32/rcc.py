@@ -1,7 +1,8 @@
 """STM32F7 RCC, as far as the timers need it (RM0385 §5; bit positions from stm32f746xx.h).
 
-Modelled: the bus prescalers in CFGR (HPRE, PPRE1, PPRE2), TIMPRE in DCKCFGR1 and the clock
-enable registers (stored; they do not gate access, see below). The PLL is not modelled: SYSCLK is
+Modelled: the APB prescalers in CFGR (PPRE1, PPRE2), TIMPRE in DCKCFGR1 and the clock enable
+registers (stored; they do not gate access, see below). HPRE must stay /1: an AHB prescaler would
+slow the core, SysTick and the DWT cycle counter too, which run on SYSCLK here (refused). The PLL is not modelled: SYSCLK is
 the board's ``sysclk`` and the register reset values are the state *after* the board's
 SystemClock_Config (216 MHz from the PLL, AHB /1, APB1 /4, APB2 /2), as if the startup code ran.
 
@@ -29,8 +30,8 @@ _AHB_DIV = {0b1000: 2, 0b1001: 4, 0b1010: 8, 0b1011: 16, 0b1100: 64, 0b1101: 128
 _APB_DIV = {0b100: 2, 0b101: 4, 0b110: 8, 0b111: 16}
 
 
-def _enables(name, offset, bits):
-    return Register(name, offset, fields=tuple(Field(b, i) for i, b in bits.items()))
+def _enables(name, offset, bits, reset=0):
+    return Register(name, offset, reset=reset, fields=tuple(Field(b, i) for i, b in bits.items()))
 
 
 class Rcc(Peripheral):
@@ -54,11 +55,26 @@ class Rcc(Peripheral):
                      Field("RTCPRE", 16, 5, modelled=False), Field("MCO1", 21, 2, modelled=False),
                      Field("I2SSCR", 23, modelled=False), Field("MCO1PRE", 24, 3, modelled=False),
                      Field("MCO2PRE", 27, 3, modelled=False), Field("MCO2", 30, 2, modelled=False))),
+        # every enable bit of stm32f746xx.h, stored (a write of USART2EN reads back); none gates
+        # a clock (module doc). DTCMRAMEN is set out of reset (RM0385 reset value 0x0010_0000)
         _enables("AHB1ENR", 0x30, {0: "GPIOAEN", 1: "GPIOBEN", 2: "GPIOCEN", 3: "GPIODEN", 4: "GPIOEEN",
                                    5: "GPIOFEN", 6: "GPIOGEN", 7: "GPIOHEN", 8: "GPIOIEN", 9: "GPIOJEN",
-                                   10: "GPIOKEN"}),
-        _enables("APB1ENR", 0x40, {0: "TIM2EN", 1: "TIM3EN", 2: "TIM4EN", 3: "TIM5EN"}),
-        _enables("APB2ENR", 0x44, {0: "TIM1EN", 1: "TIM8EN"}),
+                                   10: "GPIOKEN", 12: "CRCEN", 18: "BKPSRAMEN", 20: "DTCMRAMEN", 21: "DMA1EN",
+                                   22: "DMA2EN", 23: "DMA2DEN", 25: "ETHMACEN", 26: "ETHMACTXEN",
+                                   27: "ETHMACRXEN", 28: "ETHMACPTPEN", 29: "OTGHSEN", 30: "OTGHSULPIEN"},
+                 reset=1 << 20),
+        _enables("AHB2ENR", 0x34, {0: "DCMIEN", 4: "CRYPEN", 5: "HASHEN", 6: "RNGEN", 7: "OTGFSEN"}),
+        _enables("AHB3ENR", 0x38, {0: "FMCEN", 1: "QSPIEN"}),
+        _enables("APB1ENR", 0x40, {0: "TIM2EN", 1: "TIM3EN", 2: "TIM4EN", 3: "TIM5EN", 4: "TIM6EN", 5: "TIM7EN",
+                                   6: "TIM12EN", 7: "TIM13EN", 8: "TIM14EN", 9: "LPTIM1EN", 11: "WWDGEN",
+                                   14: "SPI2EN", 15: "SPI3EN", 16: "SPDIFRXEN", 17: "USART2EN", 18: "USART3EN",
+                                   19: "UART4EN", 20: "UART5EN", 21: "I2C1EN", 22: "I2C2EN", 23: "I2C3EN",
+                                   24: "I2C4EN", 25: "CAN1EN", 26: "CAN2EN", 27: "CECEN", 28: "PWREN",
+                                   29: "DACEN", 30: "UART7EN", 31: "UART8EN"}),
+        _enables("APB2ENR", 0x44, {0: "TIM1EN", 1: "TIM8EN", 4: "USART1EN", 5: "USART6EN", 8: "ADC1EN",
+                                   9: "ADC2EN", 10: "ADC3EN", 11: "SDMMC1EN", 12: "SPI1EN", 13: "SPI4EN",
+                                   14: "SYSCFGEN", 16: "TIM9EN", 17: "TIM10EN", 18: "TIM11EN", 20: "SPI5EN",
+                                   21: "SPI6EN", 22: "SAI1EN", 23: "SAI2EN", 26: "LTDCEN"}),
         Register("DCKCFGR1", 0x8C, on_write="_write_dckcfgr1", fields=(Field("TIMPRE", 24),)),
     )
 
@@ -117,6 +133,14 @@ class Rcc(Peripheral):
                                            f"{self.sysclk_hz / 1e6:g} MHz ([clocks] sysclk)")
 
     def _write_cfgr(self, old, new):
+        hpre = (new >> 4) & 0xF
+        if hpre in _AHB_DIV:
+            # the timers would follow HCLK (frequencies()), but the core, SysTick and the DWT
+            # cycle counter count SYSCLK cycles: refused rather than half applied
+            self.value["CFGR"] = old
+            raise UnsupportedConfiguration(self.name, "CFGR", "HPRE", hpre,
+                                           f"(AHB prescaler /{_AHB_DIV[hpre]}) is not modelled: the core, "
+                                           "SysTick and DWT run on SYSCLK; only /1 (HPRE = 0b0xxx)")
         self._publish()
 
     def _write_dckcfgr1(self, old, new):
