@@ -192,3 +192,17 @@ def test_reset_gives_the_reset_values_dir_0_releases_every_pin_and_clears_the_ou
     assert net0.level == 0
     with pytest.raises(McusimError, match="contention on net GPIO3_0"):
         net0.set("other", 1)
+
+
+def test_the_edu_ciaa_push_buttons_read_1_when_not_pressed():
+    """EDU-CIAA-NXP: TEC1-TEC4 (GPIO0[4], GPIO0[8], GPIO0[9], GPIO1[9]) are active low with 10 kΩ
+    pull-ups on the board, so sAPI's !gpioRead(TEC1) is false until a button is pressed; the
+    profile had no pull-ups and every button read as pressed. Pressing one (driving its net to 0)
+    reads 0."""
+    import mcusim
+    sim = mcusim.load("ciaa-edu", firmware=False)
+    pin0, pin1 = 0x400F6100, 0x400F6104             # GPIO PIN0, PIN1
+    assert sim.mcu.read32(pin0) & 0x310 == 0x310 and sim.mcu.read32(pin1) & 0x200 == 0x200
+    sim.pin("GPIO0_8").drive(0)
+    assert sim.mcu.read32(pin0) & 0x310 == 0x210
+    sim.close()
