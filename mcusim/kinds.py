@@ -133,6 +133,9 @@ class _Table(Param):
 _NET = Param("A0", doc="analog net name")
 _PORT = Param("A", choices=tuple("ABCDEFGHIJK"), doc="port letter")
 _BUSNAME = Param("i2c0", doc="I2C bus name (boards of a system share buses by name)")
+_BASE_CLOCK = Param("", doc="the CGU base clock feeding it (BASE_APB3_CLK for ADC0/1, BASE_APB1_CLK for "
+                    "I2C0, BASE_UARTn_CLK for USARTn): checked to give `clock` each time it runs; "
+                    "empty: not checked")
 
 
 def _P(**params):
@@ -140,7 +143,10 @@ def _P(**params):
 
 
 PERIPHERALS = {k.name: k for k in (
-    Kind("peripheral", "stm32-rcc", "mcusim.periph.stm32.rcc:Rcc", {}, "STM32F7 reset and clock control",
+    Kind("peripheral", "stm32-rcc", "mcusim.periph.stm32.rcc:Rcc", {},
+         "STM32F7 reset and clock control: CR/PLLCFGR as the board's clock set-up leaves them (the PLL "
+         "may be reprogrammed only to `sysclk`), the APB prescalers and TIMPRE (the timers' kernel clocks "
+         "follow at once; HPRE other than /1 is refused), the clock enable registers (stored, not gating)",
          needs=("base",)),
     Kind("peripheral", "stm32-flash", "mcusim.periph.stm32.sysctl:Flash", {},
          "STM32F7 flash interface: ACR (wait states, ART), as start-up code writes it", needs=("base",)),
@@ -165,16 +171,17 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "lpc43xx-adc", "mcusim.periph.lpc43xx.adc:Adc", _P(
         irq=_irq(17, "ADC0"), inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),
         vref=_num(3.3, min=2.7, max=3.6, unit="V", doc="VDDA"),
-        strict=Param(False, doc="specification limits are errors")),
+        strict=Param(False, doc="specification limits are errors"), base_clock=_BASE_CLOCK),
         "LPC4337 10-bit ADC", needs=("base", "clock")),
-    Kind("peripheral", "lpc43xx-i2c", "mcusim.periph.lpc43xx.i2c:I2c", _P(irq=_irq(18, "I2C0"), bus=_BUSNAME),
+    Kind("peripheral", "lpc43xx-i2c", "mcusim.periph.lpc43xx.i2c:I2c", _P(irq=_irq(18, "I2C0"), bus=_BUSNAME,
+                                                                           base_clock=_BASE_CLOCK),
          "LPC4337 I2C master", needs=("base", "clock")),
     Kind("peripheral", "lpc43xx-gpio", "mcusim.periph.lpc43xx.gpio:Gpio", _P(
         ports=Param(8, min=1, max=8), pins_per_port=Param(32, min=1, max=32)),
         "LPC4337 GPIO port block (pins GPIO<port>_<n>)", needs=("base",)),
     Kind("peripheral", "lpc43xx-usart", "mcusim.periph.lpc43xx.uart:Usart", _P(irq=Param(
-        0, min=0, max=495, required=True, doc="NVIC interrupt line: 24 USART0, 25 UART1, 26 USART2, 27 USART3")),
-         "LPC4337 USART", needs=("base", "clock")),
+        0, min=0, max=495, required=True, doc="NVIC interrupt line: 24 USART0, 25 UART1, 26 USART2, 27 USART3"),
+        base_clock=_BASE_CLOCK), "LPC4337 USART", needs=("base", "clock")),
     Kind("peripheral", "lpc43xx-cgu", "mcusim.periph.lpc43xx.cgu:Cgu", _P(
         xtal_hz=Param(12_000_000, min=1_000_000, max=25_000_000, unit="Hz", doc="crystal on XTAL1/XTAL2")),
         "LPC43xx clock generation unit: crystal, PLL0USB/PLL0AUDIO, PLL1 and LOCK, dividers, base "

@@ -211,3 +211,29 @@ def test_freq_mon_counts_nothing_from_the_32_khz_oscillator_while_creg0_holds_it
     wr(sim, CREG + 0x4, rd(sim, CREG + 0x4) & ~0b1100)
     wr(sim, FREQ_MON, (1 << 23) | 0x1FF)
     assert (rd(sim, FREQ_MON) >> 9) & 0x3FFF == 511 * 32768 // 12_000_000
+
+
+ADC0, USART3 = 0x400E3000, 0x400C2000
+
+
+def test_a_peripheral_whose_base_clock_no_longer_gives_its_clock_refuses_to_run(sim):
+    """UM10503 clock tables: ADC0/1 run on BASE_APB3_CLK, USART3 on BASE_UART3_CLK. The models run
+    at the board's 204 MHz whatever the CGU says; a base clock moved to the 12 MHz crystal (as
+    NuttX's lpc4337-ws set-up does for APB3) or powered down had left the ADC converting and the
+    USART framing at 204 MHz without a word. The move itself is accepted (a firmware may move the
+    clock of a peripheral it does not use); the peripheral refuses when it starts."""
+    wr(sim, CGU + 0x84, 0x0600_0800)                      # BASE_APB3_CLK: crystal
+    wr(sim, USART3 + 0x00, 0x41)                          # THR: USART3's base clock is still PLL1
+    sim.run(seconds="200us")
+    with pytest.raises(UnsupportedConfiguration, match=r"CGU\.BASE_APB3_CLK = 0x6000800 selects crystal "
+                       r"oscillator, 12 MHz: ADC0 runs on it.*204 MHz"):
+        wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | 1)   # CR: START now, PDN, channel 0
+    assert rd(sim, ADC0 + 0x00) == 0                      # the refused write left CR as it was
+    wr(sim, CGU + 0x84, 0x0900_0800)                      # back on PLL1: converts
+    wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | 1)
+    sim.run(seconds="50us")
+    assert rd(sim, ADC0 + 0x04) >> 31 == 1               # GDR.DONE
+    wr(sim, CGU + 0xA8, 0x0900_0801)                      # BASE_UART3_CLK powered down
+    with pytest.raises(UnsupportedConfiguration, match=r"BASE_UART3_CLK = 0x9000801 is powered down: USART3"):
+        wr(sim, USART3 + 0x00, 0x42)
+    assert not sim.mcu.periph["USART3"]._txq               # the byte was not queued either

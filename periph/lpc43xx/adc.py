@@ -98,6 +98,8 @@ from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 from mcusim.signals import exact_voltage as _exact
 
+from .cgu import BaseClockUser
+
 DONE = 1 << 31
 OVERRUN = 1 << 30
 ADGINTEN = 1 << 8
@@ -134,7 +136,7 @@ class _Conversion:
         self.bits, self.burst, self.result = bits, burst, None
 
 
-class Adc(Peripheral):
+class Adc(BaseClockUser, Peripheral):
     RGU_RESET = True  # the RGU may call reset() (periph/lpc43xx/rgu.py)
     SIZE = 0x1000     # one 4 KB APB3 slot (ADC1 follows ADC0 at +0x1000)
     BUS_WIDTH = 4
@@ -155,9 +157,10 @@ class Adc(Peripheral):
             Field("ADINT", 16, access="r"))),
     )
 
-    def __init__(self, name, mcu, clock, inputs=None, irq=17, vref=3.3, strict=False):
+    def __init__(self, name, mcu, clock, inputs=None, irq=17, vref=3.3, strict=False, base_clock=""):
         super().__init__(name)
         self.mcu, self.kernel, self.clock = mcu, mcu.kernel, clock
+        self._init_base_clock(base_clock)
         self.irq = irq
         self.inputs = dict(inputs or {})
         for ch in self.inputs:
@@ -268,6 +271,8 @@ class Adc(Peripheral):
     def _write_cr(self, old: int, new: int) -> None:
         try:
             wants = self._check(new)
+            if wants and self._cr("PDN", new):
+                self._check_base_clock()
         except McusimError:
             self.value["CR"] = old  # a refused write leaves CR as it was (also for the strict clock error)
             raise
@@ -312,6 +317,7 @@ class Adc(Peripheral):
 
     # --- conversion ----------------------------------------------------------------------------
     def _begin(self, t_start: int, channel: int) -> None:
+        self._check_base_clock()
         burst = bool(self._cr("BURST"))
         clks = self._cr("CLKS") if burst else 0
         pt = self.clock.period * (self._cr("CLKDIV") + 1)  # base ticks per ADC clock

@@ -28,8 +28,11 @@ Rules:
 * the CCU1 branch clock of the core (CLK_M4_M4CORE) cannot be stopped (the core would stop);
 * everything else is stored: the other base clocks, the integer dividers, PLL0USB/PLL0AUDIO
   (their dividers are not decoded), the branch clocks. Gating is not modelled: a peripheral whose
-  branch clock is off still responds, and the modelled ADC, I2C and USART keep their profile's
-  clock whatever their base clock selects.
+  branch clock is off still responds. The modelled ADC, I2C and USART run at their profile's
+  clock; one whose profile names its base clock (``base_clock = "BASE_APB3_CLK"``) checks, each
+  time it starts a conversion, a transfer or a frame, that the base clock gives that frequency
+  (:meth:`Cgu.check_base_clock`), and refuses to run otherwise (a base clock on the crystal, an
+  integer divider, powered down).
 
 FREQ_MON measures at once: writing MEAS = 1 counts the selected clock against RCNT cycles of the
 12 MHz IRC and clears MEAS (a clock the model does not know, such as an Ethernet PHY clock,
@@ -134,6 +137,11 @@ class Cgu(Peripheral):
         self.core_hz = Fraction(mcu.core_clock.hz)
         self.xtal_hz = Fraction(xtal_hz)
         self._transient_ev = None      # the check that the core left a transitional clock
+        self.writes = 0                # register writes so far: base clock users re-check after one
+
+    def write_register(self, reg, data, lanes=-1):
+        self.writes += 1
+        super().write_register(reg, data, lanes)
 
     # --- frequencies ---------------------------------------------------------------------------
     def source_hz(self, sel: int, depth: int = 0) -> Fraction | None:
@@ -186,6 +194,30 @@ class Cgu(Peripheral):
         if direct or fbsel:
             return fin * m / n
         return fin * m / (n * 2 * p)
+
+    def base_hz(self, base: str) -> Fraction | None:
+        """The frequency base clock ``base`` (``"BASE_APB3_CLK"``) gives as the registers set it: 0
+        when it is powered down or its source is off, None when the model does not know it."""
+        v = self.value[base]
+        return Fraction(0) if v & 1 else self.source_hz((v >> 24) & 0x1F)
+
+    def check_base_clock(self, user) -> None:
+        """For a peripheral model about to run (``user``: its ``name``, ``clock``, ``base_clock``):
+        the base clock feeding it must give the clock it was built with, as the models do not follow
+        a base clock's changes. Checked when it runs, not when the CGU is written: a firmware may
+        move or power down the base clock of a peripheral it does not use. Else
+        UnsupportedConfiguration naming the base clock and what it gives."""
+        base = user.base_clock
+        hz = self.base_hz(base)
+        if hz == user.clock.hz:
+            return
+        got = ("is powered down" if self.value[base] & 1 else
+               f"selects {SOURCE_NAMES.get((self.value[base] >> 24) & 0x1F, 'a reserved source')}"
+               + ("" if not hz else f", {float(hz) / 1e6:g} MHz") + (" (off)" if hz == 0 else ""))
+        raise UnsupportedConfiguration(
+            self.name, base, None, self.value[base],
+            f"{got}: {user.name} runs on it, and its model runs at the board's "
+            f"{float(user.clock.hz) / 1e6:g} MHz (the peripherals do not follow a base clock's changes)")
 
     # --- the core clock ------------------------------------------------------------------------
     def _check_m4(self, reg: str, value: int) -> None:
@@ -365,3 +397,31 @@ class Ccu1(_Ccu):
 class Ccu2(_Ccu):
     BRANCHES, BASE_BIT = CCU2_BRANCHES, _CCU2_BASE_BIT
     REGISTERS = _ccu_registers(CCU2_BRANCHES)
+
+
+BASE_CLOCKS = tuple(b[0] for b in _BASES)
+
+
+class BaseClockUser:
+    """Mixin of a peripheral model fed by a CGU base clock: ``base_clock`` (a BASE_x_CLK name, or
+    "" for none) is checked with :meth:`Cgu.check_base_clock` each time it starts to run, and
+    again after any CGU write only (it costs a lookup otherwise)."""
+
+    def _init_base_clock(self, base_clock: str) -> None:
+        if base_clock and base_clock not in BASE_CLOCKS:
+            from mcusim.errors import ConfigError
+            raise ConfigError(f"{self.name}: base_clock {base_clock!r} is not one of the CGU's "
+                              f"({', '.join(BASE_CLOCKS)})")
+        self.base_clock = base_clock or None
+        self._cgu = None
+        self._cgu_seen = -1
+
+    def _check_base_clock(self) -> None:
+        if self.base_clock is None:
+            return
+        cgu = self._cgu
+        if cgu is None:
+            cgu = self._cgu = next((p for p in self.mcu.periph.values() if isinstance(p, Cgu)), False)
+        if cgu and cgu.writes != self._cgu_seen:
+            cgu.check_base_clock(self)
+            self._cgu_seen = cgu.writes

@@ -87,6 +87,8 @@ from mcusim.firmware import Signal
 from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 
+from .cgu import BaseClockUser
+
 AA, SI, STO, STA, I2EN = 0x04, 0x08, 0x10, 0x20, 0x40
 CONTROL_BITS = AA | SI | STO | STA | I2EN
 NO_INFO = 0xF8
@@ -107,7 +109,7 @@ def _mask(name, offset):
     return Register(name, offset, fields=(Field("MASK", 1, 7),))
 
 
-class I2c(Peripheral):
+class I2c(BaseClockUser, Peripheral):
     i2c_slave = False   # a master: its slave mode is not modelled (refused when addressed)
     BUS_WIDTH = 4
     ACCESS_SIZES = (4,)
@@ -134,10 +136,11 @@ class I2c(Peripheral):
         _mask("MASK3", 0x3C),
     )
 
-    def __init__(self, name, mcu, clock, bus, irq=18):
+    def __init__(self, name, mcu, clock, bus, irq=18, base_clock=""):
         super().__init__(name)
         self.mcu, self.kernel, self.nvic, self.clock = mcu, mcu.kernel, mcu.irq, clock
         self.bus, self.irq = bus, irq
+        self._init_base_clock(base_clock)
         self.si = Signal()          # fired whenever hardware sets SI (for polled firmware)
         self.status_log = RecentLog()    # (tick, status) each time SI is set: the recent ones
         self._owner = False         # between our START and our STOP
@@ -184,6 +187,7 @@ class I2c(Peripheral):
         con = self._con
         if con & STA and not self._owner and self._inflight is None and not con & SI:
             try:
+                self._check_base_clock()
                 self._check_rate()
             except UnsupportedConfiguration:
                 self.value["CONSET"] = old      # refused: CONSET as it was (the START not asked)
@@ -244,6 +248,7 @@ class I2c(Peripheral):
                                        f"only repeated START, STOP or STOP+START here")
 
     def _issue_start(self):
+        self._check_base_clock()
         self._check_rate()
         repeated = self._owner
         self._inflight = "start"

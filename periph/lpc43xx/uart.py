@@ -119,6 +119,8 @@ from mcusim.firmware import Signal
 from mcusim.recent import RecentLog
 from mcusim.registers import Field, Peripheral, Register
 
+from .cgu import BaseClockUser
+
 # instance -> (base address, NVIC IRQ) [V: LO-MAP, SVD, reference §2.3]
 INSTANCES = {"USART0": (0x40081000, 24), "USART2": (0x400C1000, 26), "USART3": (0x400C2000, 27)}
 # IIR interrupt identifications
@@ -137,7 +139,7 @@ def _unmodelled(*spec):
     return tuple(Field(name, lsb, width, modelled=False) for name, lsb, width in spec)
 
 
-class Usart(Peripheral):
+class Usart(BaseClockUser, Peripheral):
     SIZE = 0x1000
     REGISTERS = (
         Register("RBR", 0x00, access="r", on_read="_read_rbr", fields=(Field("RBR", 0, 8, access="r"),)),
@@ -184,10 +186,11 @@ class Usart(Peripheral):
         Register("TER", 0x5C, reset=0x01, on_write="_write_ter", fields=(Field("TXEN", 0),)),
     )
 
-    def __init__(self, name, mcu, clock, irq: int, endpoint=None):
+    def __init__(self, name, mcu, clock, irq: int, endpoint=None, base_clock=""):
         super().__init__(name)
         self._plain = {r.offset: r for r in self.REGISTERS if r.offset not in SHARED}
         self.mcu, self.kernel, self.clock, self.irqn = mcu, mcu.kernel, clock, irq
+        self._init_base_clock(base_clock)
         self._writing = False
         # transmitter
         self._fifoen = False
@@ -302,7 +305,9 @@ class Usart(Peripheral):
     def _write_thr(self, old, new):
         byte = new & 0xFF
         start = self._tsr is None and not self._txq and self.value["TER"] & 1
-        fmt = self.frame_format() if start else None      # may raise: nothing has changed yet
+        if start:
+            self._check_base_clock()                      # may raise, as may the format:
+        fmt = self.frame_format() if start else None      # nothing has changed yet
         self._cancel_thre()
         self._thre_int = False
         if len(self._txq) >= self._tx_capacity:
@@ -315,6 +320,7 @@ class Usart(Peripheral):
         self._update_irq()
 
     def _load_tsr(self, start: Fraction, fmt) -> None:
+        self._check_base_clock()
         frame, bit, stop = fmt
         self._tsr = self._txq.popleft() & self._wmask
         self._tx_end = start + frame
@@ -397,6 +403,7 @@ class Usart(Peripheral):
         if not data:
             return
         if self._rx_ev is None:
+            self._check_base_clock()
             frame = self.frame_format()[0]               # may raise: nothing has changed yet
             self._line.extend(data)
             self._rx_end = self._now_cycle() + frame
