@@ -441,7 +441,7 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
     if avr:     # the chip's other I/O registers: an access names them (periph/avr/unmodelled.py)
         from mcusim.periph.avr.unmodelled import STORAGE, UNITS, AvrUnmodelled
         free = {a for _, a, *_ in UNITS + STORAGE if bus.peripheral_at(a) is None}
-        bus.attach_registers(0, AvrUnmodelled("ATmega328P", free))
+        bus.attach_registers(0, AvrUnmodelled("ATmega328P", free, mcu))
     check_pins_have_ports(profile, where, mcu)
     check_memory_clear_of_peripherals(profile, where, bus)
     if elf is not None:         # (after the peripherals: a region over one is named at its own line)

@@ -212,7 +212,8 @@ PERIPHERALS = {k.name: k for k in (
     Kind("peripheral", "avr-timer0", "mcusim.periph.avr.timer0:Timer0", _P(
         vectors=_Table(("compa", "compb", "ovf"), _VEC)), "ATmega328P Timer/Counter0", needs=("clock",)),
     Kind("peripheral", "avr-timer1", "mcusim.periph.avr.timer1:Timer1", _P(
-        vectors=_Table(("capt", "compa", "compb", "ovf"), _VEC)), "ATmega328P Timer/Counter1",
+        vectors=_Table(("capt", "compa", "compb", "ovf"), _VEC),
+        icp=Param("PB0", doc="the input capture pin ICP1 (empty: none)")), "ATmega328P Timer/Counter1",
         needs=("clock",)),
     Kind("peripheral", "avr-adc", "mcusim.periph.avr.adc:Adc", _P(
         inputs=_Table((), _NET, any_int_keys=range(8), doc="analog net of each channel"),

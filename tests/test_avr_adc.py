@@ -316,3 +316,19 @@ def test_internal_reference_options_are_refused_while_an_external_voltage_is_on_
     assert e.value.register == "ADMUX" and e.value.field == "REFS" and "AREF" in str(e.value)
     assert mcu.read8(ADMUX) == 0x00              # the refused write left ADMUX as it was
     mcu.write8(ADMUX, 0x00)                      # REFS = 00 (AREF) stays allowed
+
+
+def test_didr0_turns_the_digital_input_of_an_adc_pin_off_so_pinc_reads_zero():
+    """Datasheet DIDR0: "When this bit is written logic one, the digital input buffer on the
+    corresponding ADC pin is disabled. The corresponding PIN Register bit will always read as zero
+    when this bit is set." It had been stored only: PC2 with its pull-up read 1."""
+    import mcusim
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    m.write8(0x28, 0x04)                 # PORTC: pull-up on PC2
+    assert m.read8(0x26) & 0x04
+    m.write8(0x7E, 0x04)                 # DIDR0: ADC2D
+    assert m.read8(0x26) & 0x04 == 0 and m.read8(0x7E) == 0x04
+    m.write8(0x7E, 0)
+    assert m.read8(0x26) & 0x04
+    sim.close()

@@ -203,3 +203,22 @@ def test_mcusr_holds_the_reset_flags_cleared_by_writing_0_and_wdt_disable_is_acc
         with pytest.raises(UnsupportedConfiguration, match="WDTCSR"):
             m.write8(0x60, v)
     sim.close()
+
+
+def test_a_watchdog_left_on_after_the_timed_sequence_is_refused():
+    """Datasheet WDTCSR (safety level 1, the Arduino fuses): writing WDE = 1 enables the watchdog;
+    WDCE opens 4 cycles in which wdt_disable() writes WDE = 0. WDCE|WDE alone (or with a
+    prescaler, 0x1F) leaves the watchdog on, which had been accepted as off."""
+    import mcusim
+    from mcusim.errors import UnsupportedConfiguration
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    m.write8(0x60, 0x18)
+    sim.run(cycles=3)
+    m.write8(0x60, 0x00)                 # within the window: off, accepted
+    sim.run(cycles=20)
+    m.write8(0x60, 0x1F)
+    sim.run(cycles=3)
+    with pytest.raises(UnsupportedConfiguration, match=r"WDTCSR\.WDE = 0x1 \(written 0x1f with WDCE"):
+        sim.run(cycles=2)
+    sim.close()

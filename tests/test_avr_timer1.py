@@ -352,6 +352,28 @@ def test_input_capture_on_rising_edge_sets_icf1_and_latches_tcnt():
     assert rig.r16(ICR1) == 1001
 
 
+def test_input_capture_on_the_pro_mini_board_comes_from_pin_pb0():
+    """Datasheet §16.6 and the pin list: ICP1 is PB0. The board never connected it, so ICES1 and
+    ICIE1 were accepted and no capture ever came (only a test rig that set ``icp`` saw one). A
+    rising edge on PB0 copies TCNT1 into ICR1 and sets ICF1; here by the port itself driving the
+    pin, which the datasheet names as a way to trigger a capture by software."""
+    import mcusim
+    sim = mcusim.load("pro-mini", firmware=False)
+    m = sim.mcu
+    m.write8(TCCR1B, 0x40 | CS10)        # normal mode, clk/1, ICES1 rising
+    sim.run(cycles=100)
+    assert m.read8(TIFR1) & ICF == 0
+    m.write8(0x24, 1)                    # DDRB: PB0 an output
+    tcnt = m.read8(0x84) | (m.read8(0x85) << 8)
+    m.write8(0x25, 1)                    # PORTB: PB0 high, on the tick TCNT1 was read
+    sim.run(cycles=10)
+    assert m.read8(TIFR1) & ICF
+    icr = m.read8(ICR1) | (m.read8(ICR1 + 1) << 8)
+    # the capture at the next clock edge (its synchroniser delay is the model's documented choice)
+    assert icr - tcnt in (0, 1), (tcnt, icr)
+    sim.close()
+
+
 def test_phase_correct_ocr_change_from_top_forces_low_at_top_symmetric():
     rig = Rig()
     rig.w16(OCR1A, 255)

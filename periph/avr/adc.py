@@ -5,7 +5,7 @@ Sources: the ATmega328P data sheet (ADC chapter; vector 21). simavr's ADC errors
 
 Registers (data space): ADCL 0x78, ADCH 0x79, ADCSRA 0x7A (ADEN, ADSC, ADATE, ADIF, ADIE,
 ADPS2:0), ADCSRB 0x7B (ADTS2:0; ACME belongs to the analog comparator and raises if set),
-ADMUX 0x7C (REFS1:0, ADLAR, MUX3:0), DIDR0 0x7E (stored; digital input buffers are not modelled).
+ADMUX 0x7C (REFS1:0, ADLAR, MUX3:0), DIDR0 0x7E (ADCnD = 1: PINC bit n reads 0, the pin's digital input buffer off).
 
 Modelled
 --------
@@ -78,7 +78,8 @@ class Adc(Peripheral):
                  fields=(Field("ADTS", 0, 3), Field("ACME", 6, modelled=False))),
         Register("ADMUX", 0x7C, width=8, on_write="_write_admux",
                  fields=(Field("MUX", 0, 4), Field("ADLAR", 5), Field("REFS", 6, 2))),
-        Register("DIDR0", 0x7E, width=8, fields=tuple(Field(f"ADC{n}D", n) for n in range(6))),
+        Register("DIDR0", 0x7E, width=8, on_write="_write_didr0",
+                 fields=tuple(Field(f"ADC{n}D", n) for n in range(6))),
     )
 
     def __init__(self, name, mcu, clock, inputs=None, avcc=5.0, vector=21, aref=None):
@@ -179,6 +180,13 @@ class Adc(Peripheral):
 
     def _write_adcsrb(self, old, new):
         self._check_trigger(self.value["ADCSRA"], new)
+
+    def _write_didr0(self, old, new):
+        """DIDR0: "the corresponding PIN Register bit will always read as zero when this bit is set"
+        (ADC0-ADC5 are PC0-PC5): port C is told which of its inputs are off."""
+        for p in self.mcu.periph.values():
+            if getattr(p, "port", None) == "C" and hasattr(p, "inputs_off"):
+                p.inputs_off = new & 0x3F
 
     def _write_admux(self, old, new):
         refs = new >> 6

@@ -5,7 +5,8 @@
   the datasheet says, OC1x reaches the pin only while DDR makes it an output.
   Under the fast engine a timer's steady waveform passes through to the pin's net as it is.
 * DDxn = 0: input; PORTxn = 1 enables the pull-up (the net reads 1 when nothing drives it).
-* Reading PINx returns the pin levels. Writing 1 to PINxn toggles PORTxn.
+* Reading PINx returns the pin levels (0 for a pin whose digital input the ADC's DIDR0 turned off).
+  Writing 1 to PINxn toggles PORTxn.
 
 Not modelled: the input synchroniser's 1.5-cycle delay on PINx reads (reads see the level of the
 current tick), PUD in MCUCR (pull-ups are always allowed), and the pins' analog functions.
@@ -35,6 +36,7 @@ class AvrPort(Peripheral):
         self.mcu, self.port = mcu, port
         self.pins = [mcu.add_pin(f"P{port}{n}") for n in range(pins)]
         self.overrides: dict[int, object] = {}  # pin -> Port of an alternate function (OC1A ...)
+        self.inputs_off = 0     # pins whose digital input buffer is off (DIDR0 for port C): PIN reads 0
 
     def connect_override(self, n: int, port) -> None:
         """Let a peripheral output (a ``Port``, value None = not driving) take over pin ``n``."""
@@ -50,7 +52,7 @@ class AvrPort(Peripheral):
         for n, net in enumerate(self.pins):
             if net.level:
                 v |= 1 << n
-        return v
+        return v & ~self.inputs_off
 
     def _write_pin(self, old, new):
         self.value["PORT"] ^= new & 0xFF  # writing 1 to PINxn toggles PORTxn

@@ -43,7 +43,9 @@ Choices on [DS-recall]/[INF] items
   OCR1x = TOP gives a constant output (the datasheet's "match ignored"); OCF1x is still set.
 * Writing TCNT1 blocks the compare matches (flags and pin actions) of the next timer clock only; the
   counter still counts on that clock, and TOP/BOTTOM events still happen.  The counting direction is
-  kept across a TCNT1 write.
+  kept across a TCNT1 write.  TCNT1 written equal to BOTTOM while counting down (which the datasheet
+  says not to do, as for TOP, without saying what follows) is BOTTOM reached: the counter turns up
+  and TOV1 is set [choice; for TOP the datasheet does say the match is missed, see _derive].
 * Counter above TOP (TOP lowered below TCNT1, or TCNT1 written above TOP): single slope counts up to
   0xFFFF and wraps to 0, setting TOV1 at that wrap (in fast PWM too); no buffer load or pin action at
   that wrap.  Dual slope counting up does the same but TOV1 comes at the BOTTOM that follows; counting
@@ -639,12 +641,14 @@ class Timer1(AvrTimer):
         *_r16("OCR1B", 0x8A),
     )
 
-    def __init__(self, name, mcu, clock, vectors=None):
+    def __init__(self, name, mcu, clock, vectors=None, icp="PB0"):
         super().__init__(name, mcu, clock, vectors or {"capt": 10, "compa": 11, "compb": 12, "ovf": 13})
         self._temp = 0
         self._ices = 0
         self._icp: Net | None = None
         self._icp_level = None
+        if icp:
+            self.icp = mcu.add_pin(icp)     # ICP1 is PB0 on the ATmega328P (datasheet pin list)
         for reg in ("TCNT1", "ICR1", "OCR1A", "OCR1B"):
             setattr(self, f"_wr_{reg}H", partial(self._wr_hi))
             setattr(self, f"_wr_{reg}L", partial(self._wr_lo, reg))
@@ -705,7 +709,8 @@ class Timer1(AvrTimer):
     # --- input capture
     @property
     def icp(self) -> Net | None:
-        """The ICP1 input net (the board wires PB0); assigning it connects the capture listener."""
+        """The ICP1 input net (PB0 unless the profile's ``icp`` says otherwise; assigning a net
+        connects the capture listener there instead)."""
         return self._icp
 
     @icp.setter

@@ -6,7 +6,9 @@ value; reading gives that value, and writing anything else raises
 :class:`~mcusim.errors.UnsupportedConfiguration` naming the register (the unit behind it is not
 modelled). GPIOR0-2 are general-purpose storage and are modelled as such; MCUSR holds the reset
 flags (PORF after power-on, each cleared by writing 0); WDTCSR takes the writes of
-``wdt_disable()`` (WDCE|WDE, then WDE = 0), which leave the watchdog off. The board builder maps
+``wdt_disable()`` (WDCE|WDE, then WDE = 0 within 4 cycles), which leave the watchdog off; a
+watchdog left on (WDE set without WDCE, or not cleared within the 4 cycles) or its interrupt is
+refused. The board builder maps
 only the addresses no declared peripheral took, so a profile that adds a model of one of these
 units (a USART0, Timer2) takes its registers over.
 """
@@ -50,7 +52,7 @@ class AvrUnmodelled(Peripheral):
     BUS_WIDTH = 1
     ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
 
-    def __init__(self, name: str, free) -> None:
+    def __init__(self, name: str, free, mcu=None) -> None:
         regs = [Register(reg, addr, reset=reset, width=8,
                          fields=(Field(reg, 0, 8, modelled=False, doc=f"{unit} is not modelled"),))
                 for reg, addr, reset, unit in UNITS if addr in free]
@@ -60,15 +62,36 @@ class AvrUnmodelled(Peripheral):
         self.REGISTERS = tuple(regs)
         self.units = {reg: unit for reg, _, _, unit in UNITS}
         super().__init__(name)
+        self.mcu = mcu
+        self._wd_timed = None   # WDCE|WDE written: the 4-cycle window for wdt_disable()'s next write
 
     def write_register(self, reg, data, lanes=-1):
         unit = self.units.get(reg.name)
-        if reg.name == "WDTCSR" and not data & WDIE and (not data & WDE or data & WDCE):
-            return      # wdt_disable(): WDCE|WDE, then 0 (the watchdog stays off, as modelled)
+        if reg.name == "WDTCSR" and not data & WDIE:
+            # WDE = 1 enables the watchdog at once (safety level 1, WDTON unprogrammed as on the
+            # Arduino fuses); with WDCE it also opens the 4-cycle window in which wdt_disable()
+            # writes WDE = 0. Off is all that is modelled: WDE = 1 still set after the window is
+            # refused then, as is WDE = 1 written without WDCE at once
+            if self._wd_timed is not None:
+                self._wd_timed.cancel()
+                self._wd_timed = None
+            if not data & WDE:
+                return
+            if data & WDCE and self.mcu is not None:
+                k = self.mcu.kernel
+                self._wd_timed = k.at(k.now + 4 * self.mcu.core_clock.period, self._wd_left_on, data & 0xFF)
+                return
         if unit is not None and data & 0xFF != reg.reset:
             raise UnsupportedConfiguration(self.name, reg.name, None, data & 0xFF,
                                            f"is not supported ({unit}: not modelled)")
         super().write_register(reg, data, lanes)
+
+    def _wd_left_on(self, data):
+        self._wd_timed = None
+        raise UnsupportedConfiguration(self.name, "WDTCSR", "WDE", 1,
+                                       f"(written {data:#04x} with WDCE, and not cleared within the 4 cycles "
+                                       "of the timed sequence: the watchdog is on) is not supported "
+                                       "(watchdog: not modelled)")
 
 
 __all__ = ["STORAGE", "UNITS", "AvrUnmodelled"]
