@@ -202,6 +202,35 @@ def test_write_then_repeated_start_read_gives_0x10():
     assert kinds(bus) == ["start", "addr", "write", "restart", "addr", "read", "read", "stop"]
 
 
+class KeepSta(Script):
+    """A hand-written driver that does not clear STA after the START (the UM's 0x08 procedure
+    does; LPCOpen, NuttX and mbed do)."""
+
+    def _react(self):
+        m = self.mcu
+        if r(m, STAT) in (0x08, 0x10):
+            self.log.append((m.kernel.now, r(m, STAT)))
+            w(m, DAT, self.addr << 1)
+            w(m, CONCLR, SI)            # STA still set
+            return
+        super()._react()
+
+
+def test_sta_left_set_after_a_start_still_sends_the_address():
+    """UM10503 master transmitter table: in states 0x08 and 0x10 STA is X (don't care), and the
+    next action is "SLA+W will be transmitted"; CONSET.STA: a repeated START is sent only "if
+    already in master mode and data has been transmitted or received". The model sent repeated
+    STARTs for as long as STA stayed set, and the address never went out. STA still set after the
+    address (state 0x18) then does give a repeated START, as the 0x18 row says."""
+    mcu, _i2c, bus = make()
+    MemorySlave(bus, 0x50)
+    s = KeepSta(mcu, 0x50, wdata=b"\x10")
+    s.start()
+    mcu.kernel.run_until(10**6)
+    assert kinds(bus)[:3] == ["start", "addr", "restart"]
+    assert [c for _, c in s.log][:3] == [0x08, 0x18, 0x10]
+
+
 @pytest.mark.parametrize("nread,code", [(0, 0x20), (1, 0x48)])
 def test_address_nack_gives_0x20_or_0x48_and_stop(nread, code):
     mcu, _i2c, bus = make()

@@ -370,7 +370,6 @@ def test_unusable_divisors_raise_when_a_frame_needs_them(setup, match):
 @pytest.mark.parametrize("addr, value, match", [
     (LCR, 0x43, r"USART2\.LCR\.BC = 0x1"),
     (OSR, 0x80, r"USART2\.OSR\.OSINT = 0x8"),
-    (FCR, 0x09, r"USART2\.FCR\.DMAMODE = 0x1"),
     (ACR, 0x01, r"USART2\.ACR\.START = 0x1"),
     (ICR, 0x01, r"USART2\.ICR\.IRDAEN = 0x1"),
     (HDEN, 0x01, r"USART2\.HDEN\.HDEN = 0x1"),
@@ -513,3 +512,14 @@ def test_threie_enabled_during_the_initialization_delay_waits_for_it(engine):
     ticks = sim.timebase.base_hz // 204_000_000
     assert [(t - t0) // ticks for t, irq, lv in edges if irq == 27 and lv] == [9 * 160]
     sim.close()
+
+
+def test_fcr_dmamode_is_accepted_and_changes_nothing_without_a_dma_controller():
+    """UM10503 FCR.DMAMODE selects the UART DMA request mode only; a firmware that sets it without
+    programming the GPDMA (none is modelled) runs on the chip as without it. It had been refused."""
+    mcu, u = rig()
+    lpcopen_init(mcu)
+    mcu.write32(FCR, 0x09)               # FIFOEN | DMAMODE
+    mcu.write32(THR, 0x41)
+    mcu.kernel.run_until(mcu.kernel.now + 10**6)
+    assert [b for _, b in u.tx_log] == [0x41]

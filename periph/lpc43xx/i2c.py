@@ -32,9 +32,10 @@ clears SI (CONCLR.SIC); the action then taken is the one of the UM's master stat
 
 * STO = 1 (with or without STA): STOP. STO self-clears when the STOP is on the bus; STAT reads
   0xF8 and SI is **not** set after a STOP. With STA = 1 as well, a START follows the STOP (0x08).
-* STA = 1: repeated START (0x10). STA stays set until firmware clears it (CONCLR.STAC), as on the
-  chip: clearing SI again with STA still set sends another repeated START.
-* after 0x08/0x10: DAT is sent as the address byte (SLA+R/W, its bit 0 is the direction).
+* after 0x08/0x10: DAT is sent as the address byte (SLA+R/W, its bit 0 is the direction), whatever
+  STA says (STA is X in these rows of the tables; the UM's procedure clears it here).
+* otherwise STA = 1: repeated START (0x10). STA stays set until firmware clears it (CONCLR.STAC),
+  as on the chip: clearing SI after the address with STA still set sends another repeated START.
 * after 0x18/0x20/0x28/0x30: DAT is sent as a data byte (after a NACK the UM allows this too; the
   byte is then NACKed by nobody's ACK).
 * after 0x40/0x50: a byte is received; AA at this instant decides whether the master ACKs it
@@ -235,10 +236,13 @@ class I2c(BaseClockUser, Peripheral):
         code = self._code
         if con & STO:
             return self._issue_stop
+        if code in (START, RESTART):
+            # the master tables give STA as X (don't care) in 0x08/0x10: the address goes out
+            # whatever STA says (CONSET.STA: a repeated START only "if already in master mode and
+            # data has been transmitted or received"); a STA left set acts after the address
+            return self._issue_addr
         if con & STA:
             return self._issue_start
-        if code in (START, RESTART):
-            return self._issue_addr
         if code in (SLAW_ACK, SLAW_NACK, DATA_TX_ACK, DATA_TX_NACK):
             return self._issue_write
         if code in (SLAR_ACK, DATA_RX_ACK):

@@ -104,8 +104,9 @@ Receiver
 ``tx_done`` fires after every TX frame end and ``rx_ready`` after every RX frame end (byte stored or
 lost), once the registers are updated, so polling drivers can ``await rtos.wait_signal(...)``.
 
-Not modelled: auto-baud, IrDA, smart card, RS-485, synchronous mode, half duplex, DMA requests
-(FCR.DMAMODE raises), oversampling other than 16, line errors and break, the TXD/RXD pins as nets.
+Not modelled: auto-baud, IrDA, smart card, RS-485, synchronous mode, half duplex, DMA (FCR.DMAMODE
+is accepted and changes nothing: it only shapes the DMA requests, which reach no DMA controller
+here), oversampling other than 16, line errors and break, the TXD/RXD pins as nets.
 """
 
 from __future__ import annotations
@@ -156,7 +157,7 @@ class Usart(BaseClockUser, Peripheral):
                          Field("ABTOINT", 9, access="r"))),
         Register("FCR", 0x08, on_write="_write_fcr",
                  fields=(Field("FIFOEN", 0, access="w"), Field("RXFIFORES", 1, access="w"),
-                         Field("TXFIFORES", 2, access="w"), Field("DMAMODE", 3, access="w", modelled=False),
+                         Field("TXFIFORES", 2, access="w"), Field("DMAMODE", 3, access="w"),
                          Field("RXTRIGLVL", 6, 2, access="w"))),
         Register("LCR", 0x0C,
                  fields=(Field("WLS", 0, 2), Field("SBS", 2), Field("PE", 3), Field("PS", 4, 2),
