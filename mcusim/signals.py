@@ -235,6 +235,19 @@ class Net(_Carrier):
         return f"Net({self.name}={self.level})"
 
 
+def pack_levels(nets) -> int:
+    """The levels of ``nets`` as an integer, bit n the level of ``nets[n]`` (a port's PIN
+    register; :attr:`Net.level` inlined: the encoder ISRs read PIND tens of thousands of times a
+    simulated second)."""
+    v, bit = 0, 1
+    for net in nets:
+        w = net.wave
+        if (net._lvl if w is None else w.level_at(w.kernel.now)):
+            v |= bit
+        bit <<= 1
+    return v
+
+
 def exact_voltage(v) -> Fraction:
     """A voltage as an exact Fraction (a float through its shortest decimal form), so that an ADC's
     ``floor(V * 1024 / Vref)`` decides code boundaries exactly (2.5 V at 5 V is 512)."""

@@ -15,6 +15,7 @@ current tick), PUD in MCUCR (pull-ups are always allowed), and the pins' analog 
 from __future__ import annotations
 
 from mcusim.registers import Field, Peripheral, Register
+from mcusim.signals import pack_levels
 
 
 def _bits(prefix, access="rw"):
@@ -48,11 +49,7 @@ class AvrPort(Peripheral):
         self._update(0, 0)
 
     def _read_pin(self, stored):
-        v = 0
-        for n, net in enumerate(self.pins):
-            if net.level:
-                v |= 1 << n
-        return v & ~self.inputs_off
+        return pack_levels(self.pins) & ~self.inputs_off
 
     def _write_pin(self, old, new):
         self.value["PORT"] ^= new & 0xFF  # writing 1 to PINxn toggles PORTxn
