@@ -115,35 +115,15 @@ def _member_motors(sim, mname: str, member: dict) -> list[str]:
 
 
 def firmware_columns(sim) -> list[tuple[str, object]]:
-    """(column, getter) of the firmware variables each member's firmware exposes."""
+    """(column, getter) of the firmware variables each member's firmware exposes: the firmware
+    declares them (``csv_columns(motors)``, ``motors`` the member's motor names as columns take
+    them), so that this module knows no firmware."""
     cols: list[tuple[str, object]] = []
     for mname, member in sim.members.items():
         fw = member.get("firmware")
-        if fw is None:
-            continue
-        motors = _member_motors(sim, mname, member)
-        if hasattr(fw, "set_point") and hasattr(fw, "pwm") and hasattr(fw, "topics"):   # ControlMotor
-            for n in (1, 2):
-                prefix = motors[n - 1] if len(motors) >= n else f"motor{n}"
-                bridge = n - 1
-                cols += [(f"{prefix}.setpoint_rad", lambda fw=fw, n=n: fw.set_point(n)),
-                         (f"{prefix}.duty_pct", lambda fw=fw, b=bridge: fw.pwm[b].duty),
-                         (f"{prefix}.fw_position_rad",
-                          lambda fw=fw, n=n: fw.topics[f"/motor{n}/get_pos"].value)]
-        elif hasattr(fw, "setpoint") and hasattr(fw, "velocity") and hasattr(fw, "duty"):  # OpenRover module
-            from mcusim.fw.openrover_mcm.sketch import counts_to_rpm
-            prefix = motors[0] if motors else f"{mname}.motor"
-            cols += [(f"{prefix}.setpoint_rpm", lambda fw=fw: counts_to_rpm(fw.setpoint)),
-                     (f"{prefix}.velocity_rpm", lambda fw=fw: counts_to_rpm(fw.velocity)),
-                     (f"{prefix}.duty_pct", lambda fw=fw: fw.duty * 100 / 1024),
-                     (f"{prefix}.fw_current_a", lambda fw=fw: fw.current_ma / 1000)]
-        elif hasattr(fw, "odometry") and hasattr(fw, "battery_v"):                       # rover_control
-            cols += [("odometry.x_m", lambda fw=fw: fw.odometry.pose[0]),
-                     ("odometry.y_m", lambda fw=fw: fw.odometry.pose[1]),
-                     ("odometry.yaw_rad", lambda fw=fw: fw.odometry.pose[2]),
-                     ("battery.measured_v", lambda fw=fw: fw.battery_v),
-                     ("cmd_vel.linear_m_s", lambda fw=fw: fw.cmd[0]),
-                     ("cmd_vel.angular_rad_s", lambda fw=fw: fw.cmd[2])]
+        declare = getattr(fw, "csv_columns", None)
+        if declare is not None:
+            cols += declare(_member_motors(sim, mname, member), mname)
     return cols
 
 

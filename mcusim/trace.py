@@ -266,14 +266,11 @@ class VcdTrace:
                 self._now_change(var, int(level))
         if irq_vars and hasattr(mcu.nvic, "line_listeners"):
             mcu.nvic.line_listeners.append(on_line)
-        # the TXD line of each LPC43xx USART, drawn bit by bit (mcusim.tracebus)
-        try:
-            from mcusim.periph.lpc43xx.uart import Usart
-        except ImportError:     # pragma: no cover (the periph package ships with mcusim)
-            return
+        # the TXD line of each USART that declares one (``traced_txd``: the LPC43xx's), drawn bit
+        # by bit from its byte-level model (mcusim.tracebus)
         from .tracebus import UartWaveform
         for p in mcu.periph.values():
-            if isinstance(p, Usart):
+            if getattr(p, "traced_txd", False):
                 self.buses.append(UartWaveform(self, p, scope, self.base_hz))
 
     def _ps(self, ticks: int) -> int:

@@ -115,6 +115,17 @@ class ControlMotorFirmware:
     def set_point(self, motor: int) -> float:
         return self.pid.pids[motor - 1].set_point
 
+    def csv_columns(self, motors: list[str], member: str) -> list[tuple[str, object]]:
+        """(column, getter) of the variables a CSV trace samples (mcusim.csvtrace): per motor the
+        PID set point, the duty and the position the firmware publishes."""
+        cols = []
+        for n in (1, 2):
+            prefix = motors[n - 1] if len(motors) >= n else f"motor{n}"
+            cols += [(f"{prefix}.setpoint_rad", lambda n=n: self.set_point(n)),
+                     (f"{prefix}.duty_pct", lambda b=n - 1: self.pwm[b].duty),
+                     (f"{prefix}.fw_position_rad", lambda n=n: self.topics[f"/motor{n}/get_pos"].value)]
+        return cols
+
     # --- main.c -------------------------------------------------------------------------------
     def main(self) -> None:
         dev, v = self.dev, self.p["variant"]

@@ -119,6 +119,15 @@ class OpenRoverMcm:
             self.p["cycles_loop_idle"], lambda ms: (ms - self._last_ms) & 0xFFFFFFFF < self.p["sample_ms"])
         self.rtos.create_task("arduino", self.main, priority=1)
 
+    def csv_columns(self, motors: list[str], member: str) -> list[tuple[str, object]]:
+        """(column, getter) of the variables a CSV trace samples (mcusim.csvtrace): the wheel's
+        set point and measured speed, the duty and the current the sketch measures."""
+        prefix = motors[0] if motors else f"{member}.motor"
+        return [(f"{prefix}.setpoint_rpm", lambda: counts_to_rpm(self.setpoint)),
+                (f"{prefix}.velocity_rpm", lambda: counts_to_rpm(self.velocity)),
+                (f"{prefix}.duty_pct", lambda: self.duty * 100 / 1024),
+                (f"{prefix}.fw_current_a", lambda: self.current_ma / 1000)]
+
     # --- main() of the Arduino core: init(); setup(); for (;;) loop(); ---------------------------
     async def main(self):
         self.core.init()

@@ -214,6 +214,16 @@ class RoverControl:
         self.rtos.create_task("mavlink", self.mavlink_task, priority=45)
         self.rtos.create_task("status", self.status_task, priority=40)
 
+    def csv_columns(self, motors: list[str], member: str) -> list[tuple[str, object]]:
+        """(column, getter) of the variables a CSV trace samples (mcusim.csvtrace): the odometry
+        pose, the battery voltage it measures and the command it follows."""
+        return [("odometry.x_m", lambda: self.odometry.pose[0]),
+                ("odometry.y_m", lambda: self.odometry.pose[1]),
+                ("odometry.yaw_rad", lambda: self.odometry.pose[2]),
+                ("battery.measured_v", lambda: self.battery_v),
+                ("cmd_vel.linear_m_s", lambda: self.cmd[0]),
+                ("cmd_vel.angular_rad_s", lambda: self.cmd[2])]
+
     # --- start-up (nx_start → board init → rover_control main) -------------------------------
     def _ms(self, ms: int) -> int:
         return max(1, round(ms * self.p["tick_hz"] / 1000))

@@ -142,6 +142,8 @@ def _unmodelled(*spec):
 
 class Usart(BaseClockUser, Peripheral):
     SIZE = 0x1000
+    #: the VCD draws this USART's TXD line bit by bit from its frames (mcusim.tracebus.UartWaveform)
+    traced_txd = True
     REGISTERS = (
         Register("RBR", 0x00, access="r", on_read="_read_rbr", fields=(Field("RBR", 0, 8, access="r"),)),
         Register("THR", 0x00, on_write="_write_thr", fields=(Field("THR", 0, 8, access="w"),)),
