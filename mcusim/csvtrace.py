@@ -13,7 +13,7 @@ column names:
 * per battery ``<b>.voltage_v`` (terminal), ``<b>.soc`` (0..1), ``<b>.current_a``;
 * per rover body ``<body>.x_m``, ``<body>.y_m``, ``<body>.yaw_rad`` (the true pose);
 * firmware variables, read from the firmware's own state (never through the bus, so they add no
-  register accesses):
+  register accesses), as each firmware declares them (its ``csv_columns(motors, member)``):
 
   - ControlMotor (nucleo-f746): ``motorN.setpoint_rad`` (the PID set point, from
     ``/motorN/set_pos``), ``motorN.duty_pct`` (the duty last written, −100..100),
