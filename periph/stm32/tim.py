@@ -80,6 +80,8 @@ CHANNELS = (1, 2, 3, 4)
 OCM_SUPPORTED = {0b0000: "frozen", 0b0100: "force inactive", 0b0101: "force active",
                  0b0110: "PWM1", 0b0111: "PWM2"}
 PWM1, PWM2, FORCE_INACTIVE, FORCE_ACTIVE = 0b0110, 0b0111, 0b0100, 0b0101
+# registers whose writes may only reach a preload (the shadow changes at the next update event)
+_PRELOADED = frozenset(("CCR1", "CCR2", "CCR3", "CCR4", "ARR", "PSC"))
 INPUT = -1  # _mode value of a channel with CCxS != 00
 
 
@@ -567,10 +569,29 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
             if reg.name == "SR":
                 self._steady_lazy(self.kernel.now)
             elif self._ev_wrap is None and self._wrap_needed():
-                self._sync()    # a preload now waits for the next update event: it needs its wrap
-                self._plan()
+                # a preload now waits for the next update event: it needs its wrap
+                self._sync()
+                if reg.name in _PRELOADED:
+                    self._await_update()
+                else:
+                    self._plan()
         if self._enc_lazy is not None:
             self._lazy_after_write()
+
+    def _await_update(self) -> None:
+        """Fast engine, steady, synced to now: a write went into a preload register (CCRx with
+        OCxPE, ARR with ARPE, PSC), so nothing changes before the next wrap, which now needs its
+        event. What _plan would do, without re-deriving what the write did not change: the wrap
+        event, the waveforms ending there, and the lazy flags up to it (the wrap sets UIF)."""
+        t_wrap = self._t_wrap
+        self._ev_wrap = self.kernel.at(t_wrap, self._on_wrap)
+        self._uif_lazy = None
+        lazy = self._lazy
+        for ch in CHANNELS:
+            if lazy[ch] is not None and lazy[ch] >= t_wrap:
+                lazy[ch] = None
+        self._publish_waves()
+        self._steady_lazy(self.kernel.now)
 
     def _read_sr(self, stored: int) -> int:
         if self._enc_lazy is not None:
