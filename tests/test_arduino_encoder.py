@@ -338,3 +338,17 @@ def test_a_served_walk_lists_the_levels_after_each_step_and_they_repeat_every_fo
             pass
         else:
             raise AssertionError(f"index {bad} of {m} levels accepted")
+
+
+def test_the_encoder_constructors_two_millisecond_wait_comes_before_init():
+    """PJRC Encoder.h: the constructor sets the pull-ups and waits delayMicroseconds(2000) before
+    reading the pins; as a C++ global it runs before main(), so init() (Timer0 started: TCCR0B =
+    CS01|CS00) comes 2 ms after reset. The port had paid the wait after setup(), so every start-up
+    write came 2 ms early (a review against the library)."""
+    import mcusim
+    sim = mcusim.load("pro-mini")
+    sim.run(seconds="1.99ms")
+    assert sim.mcu.read8(0x45) == 0          # TCCR0B: init() has not run yet
+    sim.run(seconds="0.2ms")
+    assert sim.mcu.read8(0x45) == 0x03
+    sim.close()

@@ -163,19 +163,22 @@ def test_bench_repeat_must_be_positive(capsys):
     assert "argument --repeat: 0: must be from 1 to 100" in capsys.readouterr().err
 
 
-def test_avr_interrupt_lines_are_in_the_vcd_and_the_module_command_starts_after_1ms(tmp_path, capsys):
+def test_avr_interrupt_lines_are_in_the_vcd_and_the_module_command_comes_after_the_boot(tmp_path, capsys):
+    """The host's command waits for the module to boot: the PJRC Encoder's constructor waits 2 ms
+    for its pull-ups before main() (so init() starts the TWI after that); the host writes at 5 ms
+    and is acknowledged."""
     import mcusim
     vcd = tmp_path / "pm.vcd"
     sim = mcusim.load("pro-mini", overrides={"velocity": 10})
     sim.trace_vcd(str(vcd))
     master = sim.firmware._host()
-    sim.run(seconds="3ms")
+    sim.run(seconds="7ms")
     sim.close()
     text = vcd.read_text()
     for name in ("EXINT_INT0", "TIMER1_OVF", "TIMER0_OVF", "TWI", "ADC"):
         assert f" {name} $end" in text
     (tr,) = master.transfers
-    assert tr.t_start == sim.timebase.ticks("1ms") and tr.ok
+    assert tr.t_start == sim.timebase.ticks("5ms") and tr.ok
 
 
 def test_bench_engine_both_reports_both_factors_and_their_ratio(tmp_path, capsys):

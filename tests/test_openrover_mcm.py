@@ -78,11 +78,18 @@ def test_bad_request_sets_error_flag_and_changes_nothing(module, data, code):
 
 
 def test_velocity_step_reaches_set_point(module):
+    """The velocity loop holds the wheel at its set point on average; with 10 ms samples the
+    speed ripples by a few % around it (a single instant was 3.1 % off when the boot timing
+    moved the loop's phase by 2 ms), so the mean over half a second is what is checked."""
     sim, host = module
     host.write("SETPOINT", rpm_to_counts(10.0))
-    sim.run(seconds=2.0)
-    rpm = sim.part("motor").output_speed * 60 / (2 * 3.141592653589793)
-    assert rpm == pytest.approx(10.0, rel=0.03)
+    sim.run(seconds=1.5)
+    rpms = []
+    for _ in range(100):
+        sim.run(seconds=0.005)
+        rpms.append(sim.part("motor").output_speed * 60 / (2 * 3.141592653589793))
+    assert sum(rpms) / len(rpms) == pytest.approx(10.0, rel=0.01)
+    assert max(rpms) - min(rpms) < 1.5                  # a ripple, not an oscillation
     assert counts_to_rpm(host.read("VELOCITY")) == pytest.approx(10.0, rel=0.15)  # 10 ms samples
 
 

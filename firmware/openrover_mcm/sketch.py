@@ -130,6 +130,9 @@ class OpenRoverMcm:
 
     # --- main() of the Arduino core: init(); setup(); for (;;) loop(); ---------------------------
     async def main(self):
+        # the C++ global constructors run before main(): the Encoder's, with its 2 ms wait for
+        # the pull-ups (a Python constructor cannot wait: its cycles are paid here, before init())
+        await self.core.pay_debt()
         self.core.init()
         self.setup()
         await self.core.pay_debt()
@@ -229,9 +232,9 @@ class OpenRoverMcm:
         return INPUTS[name].check(value, name)
 
     def publish(self, name: str, value) -> None:
-        """A host input as an I2C write on the module's bus, from 1 ms after reset on (a host
-        starts talking once the module has booted; it also keeps the START off tick 0, where a
-        trace could not show it as an edge)."""
+        """A host input as an I2C write on the module's bus, from 5 ms after reset on: a host
+        starts talking once the module has booted (its TWI listens from about 2.1 ms, after the
+        Encoder constructor's 2 ms wait and init(); a write before that is not acknowledged)."""
         value = self.check_input(name, value)
         addr, reg = self.p["i2c_address"], P.BY_NAME
         if name == "velocity":
@@ -241,7 +244,7 @@ class OpenRoverMcm:
         else:
             data = bytes([reg["CONTROL"].addr, P.CTL_PID_ENABLE | P.CTL_CLEAR_FAULTS])
         kernel = self.mcu.kernel
-        start = max(kernel.now, kernel.timebase.ticks("1ms"))
+        start = max(kernel.now, kernel.timebase.ticks("5ms"))
         kernel.at(start, lambda: self._host().write(addr, data), prio=PRIO_INPUT)
 
     def topic(self, name: str):
