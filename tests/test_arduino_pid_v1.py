@@ -319,3 +319,26 @@ def test_output_and_output_sum_stay_within_limits(kp, ki, kd, p_on, direction, l
         if pid.compute():
             assert within(pid.output)
         assert within(pid.output_sum)
+
+
+def test_the_constructor_follows_the_c_overloads_a_lone_fourth_argument_is_the_direction():
+    """PID_v1.h declares PID(..., Kp, Ki, Kd, POn, ControllerDirection) and PID(..., Kp, Ki, Kd,
+    ControllerDirection): ``PID(2, 5, 1, REVERSE)`` is a reverse-acting P_ON_E controller. The
+    port's fourth positional argument had been POn, so that call gave a direct P_ON_M one (REVERSE
+    lost; and ``PID(2, 5, 1, DIRECT)`` proportional on measurement: 2.5 after a step of 5, where
+    P_ON_E gives kp·e + ki·Ts·e = 12.5)."""
+    from mcusim.fw.arduino.pid_v1 import AUTOMATIC, DIRECT, P_ON_E, P_ON_M, PID, REVERSE
+    t = [0]
+    a = PID(2, 5, 1, REVERSE, millis=lambda: t[0])
+    assert a.p_on == P_ON_E and a.controller_direction == REVERSE
+    b = PID(2, 5, 1, P_ON_M, DIRECT, millis=lambda: t[0])
+    assert b.p_on == P_ON_M and b.controller_direction == DIRECT
+    c = PID(2, 5, 1, DIRECT, millis=lambda: t[0])
+    c.set_output_limits(-1000, 1000)
+    c.set_mode(AUTOMATIC)
+    c.setpoint = 5.0
+    t[0] = 100
+    c.compute()
+    assert float(c.output) == 12.5           # P_ON_E: kp·e + ki·Ts·e
+    with pytest.raises(TypeError):
+        PID(2, 5, 1, P_ON_E, DIRECT, 0, millis=lambda: t[0])

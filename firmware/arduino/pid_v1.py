@@ -40,8 +40,20 @@ def _int16(x: int) -> int:
 
 
 class PID:
-    def __init__(self, kp: float, ki: float, kd: float, p_on: int = P_ON_E, direction: int = DIRECT,
-                 millis: Callable[[], int] | None = None):
+    def __init__(self, kp: float, ki: float, kd: float, *pon_dir: int, p_on: int | None = None,
+                 direction: int | None = None, millis: Callable[[], int] | None = None):
+        """The C++ overloads PID(Kp, Ki, Kd, POn, ControllerDirection) and PID(Kp, Ki, Kd,
+        ControllerDirection) (POn = P_ON_E): after the gains, two values are POn and the
+        direction, one is the direction, as ``PID(2, 5, 1, DIRECT)`` means in C. The input, output
+        and set point pointers are the attributes; ``millis`` is the core's ``millis()``."""
+        if len(pon_dir) > 2 or (pon_dir and (p_on is not None or direction is not None)):
+            raise TypeError("PID(kp, ki, kd[, POn], direction): POn and direction positionally or by keyword")
+        if len(pon_dir) == 2:
+            p_on, direction = pon_dir
+        elif len(pon_dir) == 1:
+            direction = pon_dir[0]
+        p_on = P_ON_E if p_on is None else p_on
+        direction = DIRECT if direction is None else direction
         if millis is None:
             raise TypeError("PID needs millis=callable returning the Arduino millis() value")
         self._millis = millis
