@@ -62,7 +62,8 @@ def test_encoder_reset_and_stop():
 
 
 def test_position_formula_variants_agree_below_one_turn_and_differ_above():
-    """Correct: 2π(rev + CNT/(ARR+1)); thesis: rev + CNT/ARR·2π (ARR = 1920)."""
+    """Correct: 2π(rev + CNT/(ARR+1)); thesis: rev + CNT/ARR·2π (ARR = 1920); in float (binary32)
+    as the C computes them, so to float32's precision (rel 1e-7)."""
     from mcusim.fw.controlmotor.encoder import Encoder
     from mcusim.fw.stm32hal import tim as hal_tim
 
@@ -71,8 +72,28 @@ def test_position_formula_variants_agree_below_one_turn_and_differ_above():
             self.CNT, self.ARR, self.CR1 = cnt, arr, (hal_tim.TIM_CR1_DIR if down else 0)
     correct = Encoder(hal_tim.TIM_HandleTypeDef(FakeTim(960, 1919)), 1920, 29, "correct", revolutions=2)
     thesis = Encoder(hal_tim.TIM_HandleTypeDef(FakeTim(960, 1920)), 1920, 29, "thesis", revolutions=2)
-    assert math.isclose(encoder_get_position(correct), 2 * math.pi * 2.5)
-    assert math.isclose(encoder_get_position(thesis), 2 + 960 / 1920 * 2 * math.pi)
+    assert math.isclose(encoder_get_position(correct), 2 * math.pi * 2.5, rel_tol=1e-7)
+    assert math.isclose(encoder_get_position(thesis), 2 + 960 / 1920 * 2 * math.pi, rel_tol=1e-7)
     pending = Encoder(hal_tim.TIM_HandleTypeDef(FakeTim(hal_tim.TIM_CNT_UIFCPY | 3, 1919)), 1920, 29, "correct",
                       revolutions=2)
-    assert math.isclose(encoder_get_position(pending), 2 * math.pi * (3 + 3 / 1920))  # wrap not yet counted
+    assert math.isclose(encoder_get_position(pending), 2 * math.pi * (3 + 3 / 1920), rel_tol=1e-7)  # wrap not counted
+
+
+def test_the_duty_to_compare_value_is_computed_in_float_as_on_the_f746():
+    """pwm.c computes round_half_even(|duty|·(float)top/100.0f) in binary32 (the F746's
+    single-precision FPU; the C twin, built with -std=c11, does not contract it into an FMA).
+    The port had computed in binary64: for a duty of 62.858795166015625 % (a float) at top =
+    4320 the float product rounds to 2715.5 and the compare value to 2716 (ties to even), where
+    binary64 gives 2715.499... and 2715."""
+    from mcusim.fw.controlmotor.pwm import Pwm, pwm_timn_set_duty
+    from mcusim.fw.stm32hal import tim as hal_tim
+
+    class FakeTim:
+        def __init__(self):
+            self.ARR, self.CCR1, self.CCR2 = 4319, 0, 0
+    h = hal_tim.TIM_HandleTypeDef(FakeTim())
+    pwm = Pwm(h, 2, hal_tim.TIM_CHANNEL_1, hal_tim.TIM_CHANNEL_2, None, 0)
+    pwm_timn_set_duty(pwm, 62.858795166015625)
+    assert (h.Instance.CCR1, h.Instance.CCR2) == (2716, 0)
+    pwm_timn_set_duty(pwm, -62.858795166015625)
+    assert (h.Instance.CCR1, h.Instance.CCR2) == (0, 2716)

@@ -32,12 +32,34 @@ def test_parameter_order_is_kp_kd_ki_windup():
 
 
 def test_law_matches_formula_when_unsaturated():
+    """The law, to float32's precision (the C computes in float: rel 1e-6)."""
     c = make(kp=2.0, kd=0.01, ki=0.5, w=100.0)
     c.pid_set_point(BRIDGE_A, 1.0)
     u1 = c.pid_apply(BRIDGE_A, 0.2)          # e = 0.8, first sample: no derivative kick
-    assert math.isclose(u1, 2.0 * (0.8 + (T / 0.5) * 0.8))
+    assert math.isclose(u1, 2.0 * (0.8 + (T / 0.5) * 0.8), rel_tol=1e-6)
     u2 = c.pid_apply(BRIDGE_A, 0.5)          # e = 0.5
-    assert math.isclose(u2, 2.0 * (0.5 + 0.01 * (0.5 - 0.8) / T + (T / 0.5) * 1.3))
+    assert math.isclose(u2, 2.0 * (0.5 + 0.01 * (0.5 - 0.8) / T + (T / 0.5) * 1.3), rel_tol=1e-6)
+
+
+def test_pid_apply_rounds_every_operation_to_float32_in_the_cs_order():
+    """pid_controller.c computes in float: error = sp − y, then kd·(e − e_prev)/T, (T/ki)·Σe and
+    kp·(e + d + i), each operation rounded to binary32, compared with the same expression evaluated
+    in numpy.float32 step by step (the port had computed in binary64)."""
+    import numpy as np
+    f = np.float32
+    c = make(kp=400.0, kd=0.05, ki=0.25, w=2.0)
+    c.pid_set_point(BRIDGE_A, 1.57)
+    kp, kd, ki, wl, per, sp = f(400.0), f(0.05), f(0.25), f(2.0), f(T), f(1.57)
+    prev, s = None, f(0)
+    for k in range(300):
+        y = 1.57 * (1 - math.exp(-k / 60.0)) + 0.001 * math.sin(k)
+        e = sp - f(y)
+        prev = e if prev is None else prev
+        s = min(max(s + e, -wl), wl)
+        u = kp * (e + kd * (e - prev) / per + (per / ki) * s)
+        prev = e
+        want = float(min(max(u, f(-100)), f(100)))
+        assert c.pid_apply(BRIDGE_A, y) == want, k
 
 
 def test_output_saturates_at_100_percent():

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import partial
 
+import numpy as np
 from mcusim.fw.controlmotor import VARIANTS
 from mcusim.fw.controlmotor.encoder import (
     Encoder,
@@ -113,7 +114,9 @@ class ControlMotorFirmware:
         return self.topics[name].value
 
     def set_point(self, motor: int) -> float:
-        return self.pid.pids[motor - 1].set_point
+        """The PID's set point (a float32 in the C) as the shortest decimal of that float32, as a
+        host reads a float: the 1.57 published reads 1.57."""
+        return float(str(self.pid.pids[motor - 1].set_point))
 
     def csv_columns(self, motors: list[str], member: str) -> list[tuple[str, object]]:
         """(column, getter) of the variables a CSV trace samples (mcusim.csvtrace): per motor the
@@ -219,7 +222,9 @@ class ControlMotorFirmware:
                     self.set_enable(bridge, value)
             for b, n in ((BRIDGE_A, 1), (BRIDGE_B, 2)):  # publishers
                 t = self.topics[f"/motor{n}/get_pos"]
-                t.value = encoder_get_position(self.enc[b])
+                # a float message: the host reads it as the shortest decimal of the float32, as it
+                # reads an image's f32 topic (docs/firmware.md)
+                t.value = float(str(np.float32(encoder_get_position(self.enc[b]))))
                 t.count += 1
             wake += period_ticks
             await self.rtos.delay_until(wake)

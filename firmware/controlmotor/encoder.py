@@ -8,10 +8,13 @@ ARR = counts per turn and computes ``revolutions + CNT/ARR·2π``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+import numpy as np
 from mcusim.fw.stm32hal import tim as hal_tim
+
+_f32 = np.float32
+_TWO_PI = _f32(6.28318530717958647692)      # the C's TWO_PI, a float literal
 
 
 @dataclass
@@ -51,13 +54,14 @@ def encoder_get_position(enc: Encoder) -> float:
     h = enc.htim
     cnt = hal_tim.__HAL_TIM_GET_COUNTER(h)
     arr = hal_tim.__HAL_TIM_GET_AUTORELOAD(h)
+    # float (binary32) in the C, one rounding per operation; returned as a Python float
     if enc.variant == "thesis":
-        return enc.revolutions + cnt / arr * 2 * math.pi
+        return float(_f32(enc.revolutions) + _f32(cnt) / _f32(arr) * _TWO_PI)
     revolutions = enc.revolutions
     if cnt & hal_tim.TIM_CNT_UIFCPY:  # a wrap happened and its ISR has not run yet
         revolutions += -1 if hal_tim.__HAL_TIM_IS_TIM_COUNTING_DOWN(h) else 1
         cnt &= ~hal_tim.TIM_CNT_UIFCPY
-    return 2 * math.pi * (revolutions + cnt / (arr + 1))
+    return float(_TWO_PI * (_f32(revolutions) + _f32(cnt) / _f32(arr + 1)))
 
 
 def encoder_set_reset(enc: Encoder) -> None:

@@ -9,9 +9,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 from mcusim.fw.stm32hal import gpio as hal_gpio
 from mcusim.fw.stm32hal import tim as hal_tim
 from mcusim.fw.stm32hal.rcc import timer_clock_freq
+
+_f32 = np.float32
+_HUNDRED = _f32(100)
 
 PWM_FREQUENCY_HZ = 50_000
 THESIS_ARR = 4319  # the thesis's value for every PWM timer: 216 MHz / 50 kHz - 1
@@ -53,14 +57,16 @@ def pwm_enable(pwm: Pwm, enable: bool) -> None:
 
 def pwm_timn_set_duty(pwm: Pwm, duty: float) -> None:
     """duty in percent, [-100, 100]; CCR = |duty|·(ARR+1)/100, so 100 % is CCR = ARR+1 (always high)."""
-    duty = max(-100.0, min(100.0, duty))
+    duty = _f32(max(-100.0, min(100.0, duty)))
     h = pwm.htim
     top = hal_tim.__HAL_TIM_GET_AUTORELOAD(h) + 1
-    ccr = round(abs(duty) * top / 100.0)
+    # float in the C: |duty|·(float)top/100.0f rounded once per operation, then to nearest (ties
+    # to even: the C's round_half_even)
+    ccr = round(float(abs(duty) * _f32(top) / _HUNDRED))
     fwd, rev = (ccr, 0) if duty >= 0 else (0, ccr)
     hal_tim.__HAL_TIM_SET_COMPARE(h, pwm.ch_fwd, fwd)
     hal_tim.__HAL_TIM_SET_COMPARE(h, pwm.ch_rev, rev)
-    pwm.duty = duty
+    pwm.duty = float(duty)
 
 
 def pwm_timn_get_duty(pwm: Pwm) -> float:
@@ -68,7 +74,7 @@ def pwm_timn_get_duty(pwm: Pwm) -> float:
     top = hal_tim.__HAL_TIM_GET_AUTORELOAD(h) + 1
     fwd = hal_tim.__HAL_TIM_GET_COMPARE(h, pwm.ch_fwd)
     rev = hal_tim.__HAL_TIM_GET_COMPARE(h, pwm.ch_rev)
-    return 100.0 * (fwd - rev) / top
+    return float(_HUNDRED * _f32(fwd - rev) / _f32(top))
 
 
 def pwm_timn_stop(pwm: Pwm) -> None:
