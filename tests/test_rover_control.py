@@ -170,3 +170,26 @@ def test_adc_clock_above_4_5_mhz_is_a_summary_warning_and_an_error_when_strict()
     strict = mcusim.load("ciaa-edu", firmware=False, strict=True)
     with pytest.raises(McusimError, match="4.5 MHz"):
         strict.mcu.write32(0x400E3000, cr)
+
+
+def test_the_nuttx_serial_driver_interrupts_at_eight_received_bytes_or_a_character_timeout():
+    """lpc43_serial.c up_setup: FCR = RXTRIGGER_8 | TXRST | RXRST | FIFOEN, so the receive
+    interrupt comes when the FIFO holds 8 bytes, or after the character time-out (UM10503: no
+    character for 3.5 to 4.5 character times) with fewer. The port had set trigger level 1: one
+    interrupt per byte. Seen through the driver's receive notifications (``rxavail``, the upper
+    half's recvsem post), one per interrupt that moved bytes."""
+    sim = mcusim.load("ciaa-edu")
+    sim.run(seconds="20ms")                      # booted: the MAVLink port (USART3) is set up
+    usart, dev = sim.mcu.periph["USART3"], sim.firmware.mavlink_dev
+    n0 = dev.rxavail.count
+    frame = 10 / sim.firmware.p["mavlink_baud"]  # 8N1: ten bits a character
+    usart.receive(bytes(3))
+    sim.run(seconds=3 * frame + 2 * frame)       # three frames in, under four character times later
+    assert dev.rxavail.count == n0
+    sim.run(seconds=3 * frame)                   # the time-out: one interrupt for the three bytes
+    assert dev.rxavail.count == n0 + 1
+    usart.receive(bytes(8))
+    sim.run(seconds=7 * frame + frame / 2)
+    assert dev.rxavail.count == n0 + 1
+    sim.run(seconds=frame)                       # the eighth byte in: the trigger level
+    assert dev.rxavail.count == n0 + 2

@@ -1,7 +1,8 @@
 """NuttX's LPC43xx serial lower half (``arch/arm/src/lpc43xx/lpc43_serial.c`` with the divisor search
 of ``lpc43_uart.c``), over the USART registers: the console that ``syslog``/``printf`` write to.
 
-Structure as in the C: ``up_setup`` (FIFOs on and reset, 8N1, the baud divisor, TX enabled),
+Structure as in the C: ``up_setup`` (FIFOs reset and on, the receive interrupt at 8 bytes or a
+character timeout, 8N1, the baud divisor),
 ``up_txint`` (THRE interrupt on while the transmit buffer holds data), ``up_interrupt`` (on THRE,
 move up to 16 bytes from the buffer to the FIFO; on received data, read RBR into the receive
 buffer) and the upper half's circular ``xmit`` buffer that ``write`` fills. The driver touches the
@@ -24,10 +25,10 @@ from collections import deque
 from mcusim.firmware import Signal
 
 UART_RBR_THR_DLL, UART_DLM_IER, UART_IIR_FCR, UART_LCR, UART_LSR = 0x00, 0x04, 0x08, 0x0C, 0x14
-UART_FDR, UART_TER = 0x28, 0x5C
+UART_FDR = 0x28
 IER_RBRIE, IER_THREIE = 0x01, 0x02
 LCR_8N1, LCR_DLAB = 0x03, 0x80
-FCR_FIFOEN_RESET = 0x07
+FCR_FIFOEN, FCR_RXRST, FCR_TXRST, FCR_RXTRIGGER_8 = 0x01, 0x02, 0x04, 0x80
 LSR_RDR, LSR_THRE = 0x01, 0x20
 IIR_INTID_MASK, IIR_THRE, IIR_RDA, IIR_CTI = 0x0E, 0x02, 0x04, 0x0C
 NVIC_ISER0 = 0xE000E100
@@ -70,18 +71,29 @@ class Lpc43SerialDev:
         self.mcu.bus.write32(self.base + off, value)
 
     def up_setup(self) -> None:
-        self.putreg(UART_IIR_FCR, FCR_FIFOEN_RESET)
-        dl, divadd, mul = lpc43_setbaud(self.pclk, self.baud)
-        self.putreg(UART_LCR, LCR_8N1 | LCR_DLAB)
-        self.putreg(UART_RBR_THR_DLL, dl & 0xFF)
-        self.putreg(UART_DLM_IER, dl >> 8)
+        """up_setup (FIFOs reset and on, the receive trigger at 8 bytes, 8N1, the divisors), then
+        what the upper half's open does next: up_attach (the vector, the NVIC line) and
+        up_rxint(true) (RBRIE)."""
+        self.putreg(UART_IIR_FCR, FCR_RXRST | FCR_TXRST)        # clear fifos
+        self.putreg(UART_IIR_FCR, FCR_FIFOEN | FCR_RXTRIGGER_8)  # set trigger
+        self.ier = self.getreg(UART_DLM_IER)
         self.putreg(UART_LCR, LCR_8N1)
-        self.putreg(UART_FDR, mul << 4 | divadd)
-        self.putreg(UART_TER, 1)
-        self.ier = IER_RBRIE
-        self.putreg(UART_DLM_IER, self.ier)
-        self.mcu.cpu.vector(self.irq, self.up_interrupt, cost=self.isr_cycles)
+        self.lpc43_setbaud()
+        self.putreg(UART_IIR_FCR, FCR_RXTRIGGER_8 | FCR_TXRST | FCR_RXRST | FCR_FIFOEN)
+        self.mcu.cpu.vector(self.irq, self.up_interrupt, cost=self.isr_cycles)       # up_attach
         self.mcu.bus.write32(NVIC_ISER0 + 4 * (self.irq // 32), 1 << (self.irq % 32))
+        self.ier |= IER_RBRIE                                                         # up_rxint
+        self.putreg(UART_DLM_IER, self.ier)
+
+    def lpc43_setbaud(self) -> None:
+        """lpc43_uart.c: DLAB set on the LCR as read, DLM, DLL, DLAB cleared, then FDR."""
+        dl, divadd, mul = lpc43_setbaud(self.pclk, self.baud)
+        lcr = self.getreg(UART_LCR)
+        self.putreg(UART_LCR, lcr | LCR_DLAB)
+        self.putreg(UART_DLM_IER, dl >> 8)
+        self.putreg(UART_RBR_THR_DLL, dl & 0xFF)
+        self.putreg(UART_LCR, lcr & ~LCR_DLAB)
+        self.putreg(UART_FDR, mul << 4 | divadd)
 
     def up_txint(self, enable: bool) -> None:
         ier = (self.ier | IER_THREIE) if enable else (self.ier & ~IER_THREIE)
