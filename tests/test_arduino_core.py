@@ -108,3 +108,51 @@ def test_detach_interrupt_of_a_pin_without_one_does_nothing():
     core.detach_interrupt(core.digital_pin_to_interrupt(7))
     assert core.read8(0x3D) == eimsk == 0b11
     assert all(f is not None for f in core.int_func)
+
+
+def test_delay_microseconds_counts_in_sixteen_bits_as_wiring_c_does():
+    """wiring.c (16 MHz): ``if (us <= 1) return; us <<= 2; us -= 5;`` on an unsigned int, then 4
+    cycles an iteration after ~20 of call and set-up: 16 cycles a microsecond up to 16383 µs, and
+    a wrapped count beyond (20000 µs burns (80000 mod 65536 − 5)·4 + 20 = 57,856 cycles, 3.6 ms).
+    The port had charged 16·us always."""
+    sim = mcusim.load("pro-mini", firmware=False)
+    core = ArduinoCore(sim.mcu)
+    for us, cycles in ((0, 16), (1, 16), (2, 32), (2000, 32000), (16383, 262128), (20000, 57856)):
+        core.debt_cycles = 0
+        core.delay_microseconds(us)
+        assert core.debt_cycles == cycles, us
+    sim.close()
+
+
+def test_analog_write_stores_the_ints_high_byte_too():
+    """wiring_analog.c: ``OCR1A = val`` with an int val writes both bytes (TEMP first), so 300 on
+    pin 9 is OCR1A = 300 (the port had written 0 as the high byte: 44)."""
+    sim = mcusim.load("pro-mini", firmware=False)
+    core = ArduinoCore(sim.mcu)
+    core.analog_write(9, 300)
+    assert sim.mcu.read8(0x88) | (sim.mcu.read8(0x89) << 8) == 300
+    sim.close()
+
+
+def test_wire_begin_enables_the_twi_before_setting_its_address_and_write_returns_the_count():
+    """Wire.cpp: begin(address) is begin() (twi_init: the two cbi's of TWSR's prescaler bits, TWBR,
+    TWCR) and then twi_setAddress; write() in slave mode returns the count given whether or not
+    twi_transmit took the bytes (outside a request it takes none). The port had set TWAR first,
+    cleared both prescaler bits in one write, and returned 0 for bytes not taken."""
+    from mcusim.fw.arduino.wire import TwoWire
+    sim = mcusim.load("pro-mini", firmware=False)
+    core = ArduinoCore(sim.mcu)
+    writes = []
+    bus = sim.mcu.bus
+    real = bus.write
+
+    def spy(addr, value, size):
+        if 0xB8 <= addr <= 0xBD:
+            writes.append(addr)
+        return real(addr, value, size)
+    bus.write = spy
+    wire = TwoWire(core)
+    wire.begin(0x10)
+    assert writes == [0xB9, 0xB9, 0xB8, 0xBC, 0xBA]      # TWSR, TWSR, TWBR, TWCR, then TWAR
+    assert wire.write(b"\x01\x02") == 2
+    sim.close()

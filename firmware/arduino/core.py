@@ -170,7 +170,15 @@ class ArduinoCore:
         return (((m << 8) + t) * 4) & 0xFFFFFFFF
 
     def delay_microseconds(self, us: int) -> None:
-        self.debt_cycles += 16 * us  # the C loop burns 4 cycles per quarter microsecond
+        """wiring.c at 16 MHz: ``us`` is an unsigned int (16 bits); 1 or less returns at once (the
+        call's ~16 cycles are the microsecond); else ``us <<= 2; us -= 5`` (in 16 bits) loop
+        iterations of 4 cycles after ~20 cycles of call and set-up: 16·us cycles up to 16383 µs,
+        and a count that wraps beyond."""
+        us &= 0xFFFF
+        if us <= 1:
+            self.debt_cycles += 16
+            return
+        self.debt_cycles += 4 * (((us << 2) - 5) & 0xFFFF) + 20
 
     async def pay_debt(self) -> None:
         if self.debt_cycles:
@@ -236,8 +244,9 @@ class ArduinoCore:
         elif pin in _PWM_TIMER1:
             self._w(TCCR1A, self._r(TCCR1A) | _PWM_TIMER1[pin])
             lo, hi = (OCR1AL, OCR1AH) if pin == 9 else (OCR1BL, OCR1BH)
-            self._w(hi, 0)
-            self._w(lo, val)
+            v = val & 0xFFFF                   # OCR1A = val: the int's 16 bits, high byte first
+            self._w(hi, v >> 8)
+            self._w(lo, v & 0xFF)
         else:
             raise ConfigError(f"analogWrite({pin}): only pins 9 and 10 (Timer1) are modelled")
 

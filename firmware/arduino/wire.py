@@ -47,8 +47,9 @@ class TwoWire:
 
     # --- Wire.cpp ---------------------------------------------------------------------------
     def begin(self, address: int) -> None:
-        self.twi_set_address(address)
+        """Wire.cpp begin(address): begin() (twi_init, the slave callbacks), then twi_setAddress."""
         self.twi_init()
+        self.twi_set_address(address)
 
     def on_receive(self, fn) -> None:
         self.user_on_receive = fn
@@ -67,10 +68,11 @@ class TwoWire:
         return -1
 
     def write(self, data) -> int:
-        """In slave mode (inside on_request): append to the TWI transmit buffer; returns bytes taken."""
+        """In slave mode (inside on_request): append to the TWI transmit buffer. Returns the count
+        given, as Wire.cpp does, whether or not twi_transmit took the bytes (a full buffer, or not
+        in a slave transmit state)."""
         data = bytes([data]) if isinstance(data, int) else bytes(data)
-        if self.twi_transmit(data) != 0:
-            return 0
+        self.twi_transmit(data)
         return len(data)
 
     def _on_receive_service(self, in_bytes, num_bytes) -> None:
@@ -92,7 +94,8 @@ class TwoWire:
         self.twi_state = TWI_READY
         self.core.digital_write(18, 1)   # internal pull-ups on SDA (A4) and SCL (A5)
         self.core.digital_write(19, 1)
-        self.bus.write8(TWSR, self.bus.read8(TWSR) & ~0b11)  # TWPS = 0
+        self.bus.write8(TWSR, self.bus.read8(TWSR) & ~0b01)  # cbi(TWSR, TWPS0)
+        self.bus.write8(TWSR, self.bus.read8(TWSR) & ~0b10)  # cbi(TWSR, TWPS1)
         self.bus.write8(TWBR, ((F_CPU // TWI_FREQ) - 16) // 2)
         self.bus.write8(TWCR, TWEN | TWIE | TWEA)
 
