@@ -236,3 +236,11 @@ def test_idle_loop_does_not_miss_a_timer0_overflow_that_lands_during_its_pass(v,
         if (t1 - due[0]) / hz > bound:
             late.append(((t1 - due[0]) / hz, t1 / hz))
     assert len(worked) > 10 and not late, late[:5]
+
+
+def test_the_measured_speed_truncates_towards_zero_as_the_sketchs_long_division():
+    """velocity = Δcount·1000/dt in C long arithmetic truncates: −7 counts in 11 ms is −636
+    counts/s (Python's floor division gave −637), +7 in 11 ms is +636."""
+    from mcusim.fw.openrover_mcm.sketch import counts_per_second
+    assert counts_per_second(-7, 11) == -636 and counts_per_second(7, 11) == 636
+    assert counts_per_second(-70, 10) == -7000 and counts_per_second(0, 10) == 0

@@ -82,6 +82,14 @@ def rpm_to_counts(rpm: float) -> int:
     return round(rpm * GEAR_RATIO * COUNTS_PER_MOTOR_TURN / 60)
 
 
+def counts_per_second(delta: int, dt_ms: int) -> int:
+    """``delta * 1000 / dt_ms`` in the sketch's long arithmetic: C's division truncates towards
+    zero (Python's ``//`` floors: a reverse speed had come out one count/s lower whenever the
+    division was not exact, 3 samples in 125)."""
+    n = delta * 1000
+    return -(-n // dt_ms) if n < 0 else n // dt_ms
+
+
 def counts_to_rpm(counts_s: float) -> float:
     return counts_s * 60 / (GEAR_RATIO * COUNTS_PER_MOTOR_TURN)
 
@@ -168,7 +176,7 @@ class OpenRoverMcm:
         if dt < self.p["sample_ms"]:
             return False
         count = self.encoder.read()
-        self.velocity = (count - self._last_count) * 1000 // dt
+        self.velocity = counts_per_second(count - self._last_count, dt)
         self._last_count, self._last_ms = count, now
         self.pid.input = float(self.velocity)
         self.pid.setpoint = float(self.setpoint)
