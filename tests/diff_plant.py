@@ -1,4 +1,6 @@
 """Plant-level differential: L6206 + DcMotor (+ encoder) driven by waveform segments, both engines."""
+import math
+
 from mcusim.engine.waveform import Waveform
 from mcusim.kernel import PRIO_HW, PRIO_OBSERVE, Kernel
 from mcusim.plant.dcmotor import DcMotor
@@ -66,15 +68,21 @@ class RoundingTie(Exception):
     float rounding of a threshold there (both angles agree to 1e-9; the threshold splits them)."""
 
 
-def rounding_tie(a, b, ticks, tol=1e-12):
+def rounding_tie(a, b, ticks, tol=1e-12, ulps=16):
     """A description of the tie if, at the first differing edge tick, either run's angle lies within
-    ``tol`` rad of an encoder threshold; else None."""
+    ``tol`` rad, or ``ulps`` units in the last place of the angle, of an encoder threshold; else
+    None. (The engines' angles agree to a few ulps of the angle itself: at a large angle, 1e6 rad
+    with an ulp of 1.2e-10 rad, that is far more than ``tol``.)"""
     step = a.get("step")
     for t in ticks:
         for run in (a, b):
             th = run["theta_at"].get(t)
-            if th is not None and step and abs(th - round(th / step) * step) <= tol:
-                return f"encoder threshold tie at tick {t}: shaft angle {th!r} rad is within {tol} rad of a threshold"
+            if th is None or not step:
+                continue
+            near = max(tol, ulps * math.ulp(th))
+            if abs(th - round(th / step) * step) <= near:
+                return (f"encoder threshold tie at tick {t}: shaft angle {th!r} rad is within {near:.3g} rad "
+                        "of a threshold")
     return None
 
 

@@ -287,6 +287,7 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
             m = self.motor
             if seg[0] >= m._t0:
                 i1, _, th1 = m.state_at(now)
+                ts, tr = m._t0, m._traj
             else:
                 # the motor was re-based at now (a state jump, a new input) and its rebuild, which
                 # closes this account, waits for the end of the tick (fast engine): the account
@@ -295,16 +296,29 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
                 if m._t0 != now or prev is None or prev[0] > seg[0]:
                     raise McusimError(f"{self.name}: supply accounting lost a motor segment")
                 i1, _, th1 = m._at(prev[1], now - prev[0])
-            self._close(seg, now, i1, th1)
+                ts, tr = prev
+            self._close(seg, now, i1, self._turned(tr, ts, seg[0], now))
             self._seg = (now, i1, th1) + seg[3:]
         q, self._q = self._q, 0.0
         return q
 
-    def _close(self, seg, t1, i1, th1):
-        """Add the charge of account ``seg`` from its start to tick ``t1`` (state i1, θ1 there)."""
-        t0, i0, th0, c, v, rt, ind, k = seg
+    def _turned(self, tr, ts, a, b):
+        """The angle the motor turns from tick ``a`` to tick ``b`` on trajectory ``tr`` (started
+        at tick ``ts``), from the angles turned since its start: the difference of two absolute
+        angles would lose the angle's rounding at its scale (an ulp of 1e6 rad is 1e-10 rad; the
+        engines' accounts then parted by 2e-9 of the current on a rover whose wheels had turned
+        that far)."""
+        if tr.kind == "chunk":
+            return tr.dtheta(b - ts) - tr.dtheta(a - ts)
+        inv = self._inv_hz
+        return tr.dtheta((b - ts) * inv) - tr.dtheta((a - ts) * inv)
+
+    def _close(self, seg, t1, i1, dth):
+        """Add the charge of account ``seg`` from its start to tick ``t1`` (current i1 there, the
+        shaft turned by ``dth`` in between)."""
+        t0, i0, _, c, v, rt, ind, k = seg
         if c:
-            q = c * (v * (t1 - t0) * self._inv_hz - ind * (i1 - i0) - k * (th1 - th0)) / rt
+            q = c * (v * (t1 - t0) * self._inv_hz - ind * (i1 - i0) - k * dth) / rt
             self._q += q
             self.charge_total += q
 
@@ -339,8 +353,8 @@ class Bts7960Bridge(SteadyDrive, MosfetBridge):
                 raise McusimError(f"{self.name}: supply accounting lost a motor segment")
             # the end state from the ended segment's closed form (not m._x0, which a guard may have
             # projected, e.g. i := 0 at a current-zero event)
-            i1, _, th1 = prev[1].eval((now - prev[0]) * self._inv_hz)
-            self._close(seg, now, i1, th1)
+            i1 = prev[1].eval((now - prev[0]) * self._inv_hz)[0]
+            self._close(seg, now, i1, self._turned(prev[1], prev[0], seg[0], now))
         self._seg = None
 
     def _supply_coeffs(self, legs, es):

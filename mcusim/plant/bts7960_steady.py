@@ -226,10 +226,12 @@ class SteadyDrive:
                 xs = Xk + Q[p] @ Xk          # Q: delta maps (periodmap)
                 end = st + plan.pieces[p][0]
                 if end <= r:
-                    xe = Xk + Q[p + 1] @ Xk
-                    i1, th1 = xe[0], xe[2]
+                    i1 = (Xk + Q[p + 1] @ Xk)[0]
                 else:
                     end = r
-                    i1, _, th1 = tr.at(k * P + r)
-                total += c * (v * (end - st) * inv - L * (i1 - xs[0]) - K * (th1 - xs[2])) / rt
+                    i1 = tr.at(k * P + r)[0]
+                # the angle turned from the angles turned since the chunk start (an absolute
+                # angle's difference loses its rounding at the angle's scale: Bts7960Bridge._turned)
+                dth = tr.dtheta(k * P + end) - tr.dtheta(k * P + st)
+                total += c * (v * (end - st) * inv - L * (i1 - xs[0]) - K * dth) / rt
         return float(total)
