@@ -54,6 +54,10 @@ Choices on [DS-recall]/[INF] items
   clock edge strictly after it (the real synchroniser/edge detector delay is a few cycles more and is
   not modelled).
 * Dual-slope TOP = 0 with the clock running raises (the datasheet minimum TOP is 3).
+* ICR1 is writable in every mode [choice]. The datasheet says it "can only be written when using a
+  Waveform Generation mode that utilizes the ICR1 Register for defining the counter's TOP value",
+  with WGM set first; a Uno read back after init() (Arduino forum thread 509204) shows silicon
+  accepting the write in mode 1. Sketches that set ICR1 before WGM13 (a common order) run.
 
 Performance: TCNT1 is computed from the anchor (clock index, value, direction) when read.  Only these
 clocks are scheduled: compare matches that change a connected output or set a flag whose interrupt is
