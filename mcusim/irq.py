@@ -155,6 +155,9 @@ class Nvic(Peripheral):
             word = self._word(reg.name)
             v = self.value[reg.name]
             v &= keep * 0x01010101
+            for b in range(4):      # Armv7-M B3.4: the fields of interrupts not implemented are RAZ/WI
+                if 4 * word + b >= self.num_irqs:
+                    v &= ~(0xFF << (8 * b))
             self.value[reg.name] = v
             for b in range(4):
                 self.priority[4 * word + b] = ((v >> (8 * b)) & 0xFF) >> (8 - self.prio_bits)

@@ -322,3 +322,17 @@ def test_avr_quiet_means_no_line_high_whatever_the_order_they_were_set(ops):
     for vector, level in ops:
         irq.set_line(vector, level)
         assert irq.quiet() == (not any(irq.lines.values()))
+
+
+def test_priority_fields_of_interrupts_the_part_lacks_read_as_zero_and_ignore_writes():
+    """Armv7-M B3.4 (NVIC_IPRn): the priority fields of interrupts not implemented are RAZ/WI. The
+    STM32F746 has 98 interrupts (0-97): IPR24's bytes for 98 and 99 and all of IPR25 stay 0 (a
+    compiled image read back the 0x50 it had written for IRQ 100)."""
+    import mcusim
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    m = sim.mcu
+    m.write32(0xE000E400 + 4 * 24, 0x50505050)
+    m.write32(0xE000E400 + 4 * 25, 0x50505050)
+    assert m.read32(0xE000E400 + 4 * 24) == 0x00005050
+    assert m.read32(0xE000E400 + 4 * 25) == 0
+    sim.close()
