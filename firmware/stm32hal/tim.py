@@ -1,8 +1,15 @@
 """The timer part of the STM32F7 HAL (stm32f7xx_hal_tim.c v1.3.x), as register sequences.
 
-Only what the ported firmware calls. The order of register writes follows the C HAL, because the
-models care: ``TIM_Base_SetConfig`` writes CR1, ARR, PSC, (RCR), then EGR.UG, then clears UIF
+Only what the ported firmware calls. The order of the writes that matter to the models follows
+the C HAL: ``TIM_Base_SetConfig`` writes CR1, ARR, PSC, (RCR), then EGR.UG, then clears UIF
 (HAL >= v1.3.1; ``clear_uif_after_ug=False`` gives the older behaviour, STM32CubeF7#110).
+
+Where the port differs from ST's register sequence (what a register log shows, not what the timer
+does): ``TIM_CCxChannelCmd``'s two CCER writes (clear, then set) are one; ``HAL_TIM_PWM_ConfigChannel``
+writes CCMR once for OCxPE and OCxFE where the HAL does three read-modify-writes, and
+``TIM_OCx_SetConfig``'s CR2 write (OISx, on TIM1/TIM8 also CCxNP/CCxNE) is left out; the UIF after UG
+is cleared by writing ``~UIF`` to SR where the HAL uses ``CLEAR_BIT`` (a read-modify-write). The C
+twin in ``firmware/controlmotor_c`` writes the same sequence as this port.
 """
 
 from __future__ import annotations
