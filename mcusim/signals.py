@@ -282,13 +282,20 @@ def _decimal(text: str) -> Fraction:
 
 
 class AnalogNet:
-    """A voltage. Either set directly, or computed on demand by a source callable ``source(t)``."""
+    """A voltage. Either set directly, or computed on demand by a source callable ``source(t)``.
+    ``floating``: neither has happened (no part's output is wired to it and nothing set it), so
+    the 0 V it reads stands for a pin left open."""
 
-    def __init__(self, name: str, volts: float = 0.0):
-        self.name, self._volts, self.source = name, volts, None
+    def __init__(self, name: str, volts: float | None = None):
+        self.name, self._volts, self.source = name, 0.0 if volts is None else volts, None
+        self._set = volts is not None
 
     def set(self, volts: float) -> None:
-        self._volts, self.source = float(volts), None
+        self._volts, self.source, self._set = float(volts), None, True
+
+    @property
+    def floating(self) -> bool:
+        return self.source is None and not self._set
 
     def voltage(self, t: int | None = None) -> float:
         return self.source(t) if self.source is not None else self._volts

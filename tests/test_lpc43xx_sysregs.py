@@ -230,6 +230,7 @@ def test_a_peripheral_whose_base_clock_no_longer_gives_its_clock_refuses_to_run(
         wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | 1)   # CR: START now, PDN, channel 0
     assert rd(sim, ADC0 + 0x00) == 0                      # the refused write left CR as it was
     wr(sim, CGU + 0x84, 0x0900_0800)                      # back on PLL1: converts
+    sim.mcu.analog["DAC"].set(1.0)                        # (channel 0: nothing is wired to it)
     wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | 1)
     sim.run(seconds="50us")
     assert rd(sim, ADC0 + 0x04) >> 31 == 1               # GDR.DONE
@@ -237,3 +238,22 @@ def test_a_peripheral_whose_base_clock_no_longer_gives_its_clock_refuses_to_run(
     with pytest.raises(UnsupportedConfiguration, match=r"BASE_UART3_CLK = 0x9000801 is powered down: USART3"):
         wr(sim, USART3 + 0x00, 0x42)
     assert not sim.mcu.periph["USART3"]._txq               # the byte was not queued either
+
+
+def test_converting_a_channel_nothing_drives_warns_that_it_reads_0_v(sim):
+    """ciaa-edu wires only CH1 (the battery divider); ADC0's channels 0, 2 and 3 are open pins,
+    whose reading is undefined on the chip. Converting one warns once (an error with strict) that
+    the 0 V it reads stands for nothing; a channel set from Python or wired does not warn."""
+    import warnings
+
+    from mcusim.periph.lpc43xx.adc import AdcInputWarning
+    with pytest.warns(AdcInputWarning, match=r"ADC0: channel 2 \(CH2\) is converted but nothing drives it"):
+        wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | (1 << 2))
+        sim.run(seconds="20us")
+    sim.mcu.analog["CH3"].set(1.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AdcInputWarning)
+        wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | (1 << 3))
+        sim.run(seconds="20us")
+        wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | (1 << 1))   # CH1: the divider
+        sim.run(seconds="20us")

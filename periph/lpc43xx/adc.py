@@ -71,7 +71,9 @@ Modelled
   level-sensitively on ``mcu.irq.set_line(irq, ADINT)`` whenever it can change. The sheet's "ADGINTEN
   must be 0 in burst mode" [I] is not enforced: the formula is applied as it stands.
 * A conversion of a channel without an AnalogNet raises UnsupportedConfiguration (ADCn.CR.SEL, naming
-  the channel) at the CR write that requests it.
+  the channel) at the CR write that requests it. A channel whose net nothing drives (declared in
+  ``inputs`` but not wired in ``[analog]``, never set from Python) converts 0 V and warns once
+  (AdcInputWarning; an error with ``strict``): on the chip an open pin reads an undefined value.
 * ``adc.done`` (a :class:`mcusim.firmware.Signal`) fires after every completion, once the registers
   and the interrupt line are updated, so a busy-wait on STAT/GDR/DRn can block. ``conversions``
   counts completions; ``history`` holds (t_start, t_sample, t_done, channel, RESULT) per conversion.
@@ -338,6 +340,10 @@ class Adc(BaseClockUser, Peripheral):
         self._ev_sample = None
         c = self._conv
         net = self.inputs[c.channel]
+        if net.floating:
+            self._limit(f"{self.name}: channel {c.channel} ({net.name}) is converted but nothing drives it (no "
+                        "part's output is wired to it in [analog], and nothing set it): it reads 0 V here, an "
+                        "undefined value on an open pin of the chip", ("floating", c.channel), AdcInputWarning)
         vin = _exact(net.voltage(self.kernel.now))
         if not 0 <= vin <= self.vref:
             self._check_input(c.channel, vin)
