@@ -247,8 +247,8 @@ def test_converting_a_channel_nothing_drives_warns_that_it_reads_0_v(sim):
     import warnings
 
     from mcusim.periph.lpc43xx.adc import AdcInputWarning
+    wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | (1 << 2))
     with pytest.warns(AdcInputWarning, match=r"ADC0: channel 2 \(CH2\) is converted but nothing drives it"):
-        wr(sim, ADC0 + 0x00, (1 << 24) | (1 << 21) | (49 << 8) | (1 << 2))
         sim.run(seconds="20us")
     sim.mcu.analog["CH3"].set(1.5)
     with warnings.catch_warnings():
