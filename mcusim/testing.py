@@ -103,8 +103,13 @@ def _lambda_of(fn, lambdas, lines) -> list:
     return [max(inside, key=lambda n: (n.body.lineno, n.body.col_offset))] if inside else lambdas
 
 
-def _ticks(sim, duration) -> int:
-    """Seconds or a duration string ("500ms") to base ticks, rounded to the nearest tick."""
+def _ticks(sim, duration, what: str = "timeout") -> int:
+    """Seconds or a duration string ("500ms") to base ticks, rounded to the nearest tick; a bool or
+    a string without a unit ("2") is refused, as ``run(seconds=...)`` refuses it."""
+    from .sim import _bare_number
+    if isinstance(duration, bool) or (isinstance(duration, str) and _bare_number(duration)):
+        raise McusimError(f"{what}={duration!r}: expected a number of seconds or a duration with a unit "
+                          "(\"2ms\"), as run(seconds=...), the command line and scenarios take it")
     return sim.timebase.ticks(duration, rounding=True)
 
 
@@ -153,7 +158,7 @@ def wait_until(sim, condition, timeout="1s", poll=None, *, message: str | None =
         if hit or condition():          # or true at the end without an event (a time condition)
             return sim.time_s
     else:
-        step = _ticks(sim, poll)
+        step = _ticks(sim, poll, "poll")
         if step <= 0:
             raise McusimError(f"poll interval {poll!r} is shorter than one base tick")
         while sim.kernel.now < end:

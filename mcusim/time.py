@@ -14,7 +14,9 @@ from fractions import Fraction
 
 from .errors import TimeError
 
+# µs with the micro sign (U+00B5) or the Greek mu (U+03BC), which keyboards give as often
 _SECONDS = {"s": Fraction(1), "ms": Fraction(1, 10**3), "us": Fraction(1, 10**6), "µs": Fraction(1, 10**6),
+            "\u03bcs": Fraction(1, 10**6),
             "ns": Fraction(1, 10**9), "ps": Fraction(1, 10**12), "min": Fraction(60)}
 _HERTZ = {"hz": 1, "khz": 10**3, "mhz": 10**6, "ghz": 10**9}
 _NUM = r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*"
@@ -38,7 +40,7 @@ def parse_duration(value: str | float | Fraction) -> Fraction:
     """``"2s"``, ``"500ms"``, ``"10us"``, ``"1.5e-3"`` (seconds) -> exact seconds as a Fraction."""
     if isinstance(value, (int, float, Fraction)):
         return _plain_number(value, "duration")
-    m = re.fullmatch(_NUM + r"(min|ms|us|µs|ns|ps|s)?\s*", str(value))
+    m = re.fullmatch(_NUM + r"(min|ms|us|µs|\u03bcs|ns|ps|s)?\s*", str(value))
     if not m:
         raise TimeError(f"bad duration {value!r}: expected a number with a unit such as 2s, 500ms, 10us")
     seconds = _number(m.group(1)) * _SECONDS[m.group(2) or "s"]

@@ -116,10 +116,8 @@ class Turn(Action):
     def parse(self, sc, i, name, spec):
         out = _positive_duration(sc, super().parse(sc, i, name, spec), i, name, "over", "100ms", TURN_STEP)
         _bounded(sc, out, i, name, "angle", 1000.0, "rad")
-        if abs(out["angle"]) / float(out["over"]) > HAND_SPEED:
-            raise sc._err(sc._line("at", i, name, "angle"), f"[[at]] #{i + 1}: {name}: {out['angle']:g} rad "
-                          f"over {_fmt_time(out['over'])} is faster than a hand turns a shaft "
-                          f"(at most {HAND_SPEED:g} rad/s): give a longer over")
+        # its speed is the distance from where the shaft is at the action's tick, over ``over``:
+        # checked then (prepare's fn), as the start is not known before
         return out
 
     def prepare(self, sc, sim, spec, line, where):
@@ -138,6 +136,11 @@ class Turn(Action):
             t0 = kernel.now
             n_ratio = motor.params.gear_ratio
             a0, a1 = motor.angle, spec["angle"] * n_ratio
+            speed = abs(a1 - a0) / n_ratio / float(spec["over"])      # output shaft, rad/s
+            if speed > HAND_SPEED:
+                raise sc._err(line, f"{where}: from {a0 / n_ratio:g} rad to {spec['angle']:g} rad over "
+                              f"{_fmt_time(spec['over'])} is {speed:.4g} rad/s, faster than a hand turns a "
+                              f"shaft (at most {HAND_SPEED:g} rad/s): give a longer over")
             sc._done(f"turn {spec['motor']} to {spec['angle']:g} rad over {_fmt_time(spec['over'])}")
 
             def step(k):
@@ -214,7 +217,7 @@ class Fault(Action):
         if "kind" not in spec:
             raise sc._err(line, f"{where}: missing kind = \"...\" (kinds: {', '.join(FAULTS)})")
         kind = spec["kind"]
-        if kind not in FAULTS:
+        if not isinstance(kind, str) or kind not in FAULTS:
             raise sc._err(sc._line("at", i, *key, "kind"),
                           f"{where}: unknown fault kind {kind!r} (kinds: {', '.join(FAULTS)})")
         fault = FAULTS[kind]

@@ -184,21 +184,46 @@ def _values_of(part) -> list[str]:
     return sorted(names)
 
 
+# summary entries that are there only when they have something to say (checked as empty before)
+_SUMMARY_WHEN_ANY = {"warnings": []}
+
+
+def _summary_keys(v, parts):
+    """The keys a dotted path names in the summary ``v``: at each level the longest run of the
+    path's parts that is a key there, so that keys holding a dot are reachable (a system's
+    motors: ``motors.mcm1.motor.speed_rpm``). Returns (keys, None), or (keys so far, the
+    dictionary where no key matched)."""
+    keys, i = [], 0
+    while i < len(parts):
+        if not isinstance(v, dict):
+            return keys, v
+        for j in range(len(parts), i, -1):
+            k = ".".join(parts[i:j])
+            if k in v:
+                keys.append(k)
+                v, i = v[k], j
+                break
+        else:
+            return keys, v
+    return keys, None
+
+
 def _read_summary(sc, sim, e, line, where):
-    path = e.source[1].split(".")
+    path = e.source[1]
+    parts = path.split(".")
+    if path in _SUMMARY_WHEN_ANY:
+        return lambda: sim.summary().get(path, _SUMMARY_WHEN_ANY[path])
+    keys, stuck = _summary_keys(sim.summary(), parts)
+    if stuck is not None:
+        done = sum(k.count(".") + 1 for k in keys)      # the parts the keys found took
+        there = ", ".join(stuck) if isinstance(stuck, dict) else "none"
+        raise sc._err(line, f"{where}: summary has no {'.'.join(parts[:done + 1])!r} (keys there: {there})")
 
     def read():
         v = sim.summary()
-        for k in path:
+        for k in keys:
             v = v[k]
         return v
-    v = sim.summary()
-    for n, k in enumerate(path):
-        if not isinstance(v, dict) or k not in v:
-            keys = ", ".join(v) if isinstance(v, dict) else "none"
-            raise sc._err(line, f"{where}: summary has no {'.'.join(path[:n + 1])!r} "
-                          f"(keys there: {keys})")
-        v = v[k]
     return read
 
 

@@ -4,6 +4,7 @@ expectations and report (:mod:`.expect`) to a simulation."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -70,8 +71,9 @@ class Scenario(Checker):
                             "missing [scenario] table (with duration = \"...\")")
         self._unknown("scenario", None, head, SCENARIO_KEYS)
         self.board = self._value("scenario", None, ("board",), head["board"], "str") if "board" in head else None
-        self.description = (self._value("scenario", None, ("description",), head["description"], "str")
-                            if "description" in head else "")
+        desc = head.get("description", "")
+        # free text: any string, the empty one too
+        self.description = desc if desc == "" else self._value("scenario", None, ("description",), desc, "str")
         if "duration" not in head:
             raise self._err(self._line("scenario"), "[scenario]: missing duration = \"...\" (e.g. \"2s\")")
         self._duration = self._value("scenario", None, ("duration",), head["duration"], "duration")
@@ -135,8 +137,11 @@ class Scenario(Checker):
                 continue
             name = ".".join(key)
             line = self._line("set", None, *key)
-            if not name or not isinstance(v, (bool, int, float, str)):
-                raise self._err(line, f"[set]: {name} = {v!r}: expected a number, true/false or a string")
+            scalar = (bool, int, float, str)
+            if not name or not (isinstance(v, scalar) or isinstance(v, list) and v
+                                and all(isinstance(x, scalar) and not isinstance(x, bool) for x in v)):
+                raise self._err(line, f"[set]: {name} = {v!r}: expected a number, true/false, a string or "
+                                "a list of numbers or strings (as --set's 8,9)")
             if name in self.overrides:      # "motor1.R" = 2.5 and motor1.R = 3: one key written twice
                 raise self._err(line, f"[set]: {name} is set twice (also at line {self._set_lines[name]}, "
                                 "quoted or dotted); keep one")
@@ -219,8 +224,13 @@ class Scenario(Checker):
             return load(board, firmware=firmware, overrides=sets, engine=engine)
         except ConfigError as exc:
             msg = str(exc)
+
+            def names(k):       # the key as a whole word of the message, not inside a longer one
+                return re.search(rf"(?<![\w.]){re.escape(k)}(?![\w.])", msg) is not None
+            if any(names(k) for k in extra):
+                raise           # about a --set of the command line: its message names it
             mine = [k for k in self.overrides if k not in extra]
-            hits = [k for k in mine if k in msg] or \
+            hits = [k for k in mine if names(k)] or \
                    [k for k in mine if "." in k and repr(k.rpartition(".")[2]) in msg]
             if len(hits) == 1:
                 msg = msg.removeprefix(f"--set {hits[0]}: ")
@@ -292,7 +302,8 @@ class Scenario(Checker):
         of the run: the run's verdict on that entry is then the scenario's (``mcusim run`` leaves
         firmware faults to a scenario that checks ``firmware.faults``; one checked earlier says
         nothing of a fault that comes later)."""
-        return any(e.source[0] == "summary" and (e.source[1] == path or e.source[1].startswith(path + "."))
+        return any(not isinstance(e, MavlinkExpect) and e.source[0] == "summary"
+                   and (e.source[1] == path or e.source[1].startswith(path + "."))
                    and (e.time is None or e.time >= self._duration) for e in self.expects)
 
     def report_entries(self) -> dict:

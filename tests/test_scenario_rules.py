@@ -1,0 +1,195 @@
+"""Scenario rules as docs/scenarios.md states them, for inputs the shipped scenarios do not use (a
+review wrote its own scenarios; each test failed on the code before its fix)."""
+
+import re
+import textwrap
+
+import pytest
+
+import mcusim
+from mcusim.cli import main
+from mcusim.errors import McusimError
+from mcusim.testing import wait_until
+
+
+def write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text).lstrip("\n"))
+    return p
+
+
+def run(tmp_path, text, *args):
+    """``mcusim run <the scenario's board> --scenario <text> --quiet *args``: its exit status."""
+    board = re.search(r'board = "([^"]+)"', text).group(1)
+    return main(["run", board, "--scenario", str(write(tmp_path, text)), "--quiet", *args])
+
+
+MAVLINK = """
+[scenario]
+board = "ciaa-edu"
+duration = "300ms"
+
+[[expect]]
+mavlink = "HEARTBEAT"
+"""
+
+
+def test_a_mavlink_expectation_with_a_firmware_fault_the_scenario_does_not_check_exits_1(tmp_path, capsys):
+    """The bench ciaa-edu reports modules_missing after ~0.22 s; a scenario that does not check
+    firmware.faults leaves it to the run, which exits 1 (the MAVLink expectation's record had no
+    summary source, and the run ended in an internal error)."""
+    assert run(tmp_path, MAVLINK) == 1
+    err = capsys.readouterr().err
+    assert "internal error" not in err and "modules_missing" in err
+
+
+def test_a_mavlink_expectation_and_a_checked_firmware_fault_pass(tmp_path, capsys):
+    """docs/scenarios.md: a scenario that checks ``firmware.faults`` itself passes with 0."""
+    text = MAVLINK + '\n[[expect]]\nsummary = "firmware.faults"\ncontains = "modules_missing"\n'
+    assert run(tmp_path, text) == 0
+
+
+@pytest.mark.parametrize("kind", ['["stall"]', "{ a = 1 }", "3"])
+def test_a_fault_kind_that_is_not_a_string_is_a_usage_error_at_its_line(tmp_path, capsys, kind):
+    text = f"""
+    [scenario]
+    board = "nucleo-f746"
+    duration = "10ms"
+
+    [[at]]
+    time = "1ms"
+    fault = {{ kind = {kind}, motor = "motor1" }}
+    """
+    assert run(tmp_path, text) == 2
+    err = capsys.readouterr().err
+    assert "s.toml:7:" in err and "unknown fault kind" in err and "Traceback" not in err
+
+
+TURNS = """
+[scenario]
+board = "nucleo-f746"
+duration = "200ms"
+
+[[at]]
+time = "0s"
+publish = {{ "/motor1/enable" = false }}
+turn = {{ motor = "motor1", angle = 3.0, over = "100ms" }}
+
+[[at]]
+time = "150ms"
+turn = {{ motor = "motor1", angle = {angle}, over = "{over}" }}
+"""
+
+
+def test_a_turn_faster_than_a_hand_is_refused_by_the_distance_it_moves(tmp_path, capsys):
+    """docs/scenarios.md: a turn "no faster than 100 rad/s". From 3 rad to -0.5 rad in 10 ms is
+    350 rad/s, refused at its line; the check had looked at the target angle alone (0.5 rad in
+    10 ms passed it)."""
+    assert run(tmp_path, TURNS.format(angle=-0.5, over="10ms")) == 2
+    err = capsys.readouterr().err
+    assert "s.toml:12:" in err and "350 rad/s, faster than a hand turns a shaft" in err
+
+
+def test_a_slow_turn_to_a_far_target_from_near_it_is_accepted(tmp_path, capsys):
+    """From 3 rad to 3.1 rad in 50 ms is 2 rad/s: accepted, though 3.1 rad in 50 ms from rest
+    would be 62 rad/s (the old check, on the target alone, refused a 10 rad target here)."""
+    text = TURNS.format(angle=3.1, over="50ms").replace('duration = "200ms"', 'duration = "250ms"')
+    assert run(tmp_path, text) == 0
+
+
+def test_a_systems_motor_is_read_through_a_summary_path_whose_key_holds_a_dot(tmp_path, capsys):
+    """docs/scenarios.md: ``summary`` is a dotted path in the run summary; a system's motors are
+    keyed ``mcm1.motor`` there, so ``motors.mcm1.motor.speed_rpm`` takes the longest key at each
+    level. It had been refused ("summary has no 'motors.mcm1'")."""
+    text = """
+    [scenario]
+    board = "elementall"
+    duration = "20ms"
+
+    [[expect]]
+    summary = "motors.mcm1.motor.speed_rpm"
+    min = 0
+    """
+    assert run(tmp_path, text) == 0
+
+
+def test_the_summarys_warnings_can_be_checked_though_the_entry_appears_only_with_a_warning(tmp_path, capsys):
+    """README: a specification limit the firmware exceeds is a ``warnings`` entry in the summary.
+    It exists only once there is one, so the path had been refused before the run."""
+    text = """
+    [scenario]
+    board = "ciaa-edu"
+    duration = "100ms"
+
+    [set]
+    "firmware.adc_clkdiv" = 10
+
+    [[expect]]
+    summary = "warnings"
+    contains = "ADC0: ADC clock 18.545 MHz = PCLK_ADC 204 MHz / (CLKDIV 10 + 1) is above the 4.5 MHz maximum (data sheet Table 37); CLKDIV >= 45 keeps it at or below 4.5 MHz"
+
+    [[expect]]
+    summary = "firmware.faults"
+    contains = "modules_missing"
+    """
+    assert run(tmp_path, text, "--duration", "300ms") == 0
+
+
+def test_a_command_line_set_mistake_is_named_as_the_command_lines(tmp_path, capsys):
+    """A --set key that extends a [set] key (firmware.kpp beside firmware.kp) had been reported at
+    the [set] line of the file."""
+    text = """
+    [scenario]
+    board = "nucleo-f746"
+    duration = "10ms"
+
+    [set]
+    firmware.kp = 300
+    """
+    assert run(tmp_path, text, "--set", "firmware.kpp=1") == 2
+    err = capsys.readouterr().err
+    assert "firmware.kpp" in err and "s.toml" not in err
+
+
+def test_set_takes_a_list_as_the_command_lines_8_9(tmp_path, capsys):
+    """docs/scenarios.md: [set] takes the keys and values of --set, which reads a list (8,9)."""
+    text = """
+    [scenario]
+    board = "elementall"
+    duration = "10ms"
+
+    [set]
+    "firmware.modules" = [8, 9, 10, 11]
+    """
+    assert run(tmp_path, text) == 0
+    bad = text.replace("[8, 9, 10, 11]", "[[8]]")
+    assert run(tmp_path, bad) == 2
+
+
+def test_an_empty_description_is_free_text(tmp_path, capsys):
+    text = """
+    [scenario]
+    board = "nucleo-f746"
+    duration = "10ms"
+    description = ""
+    """
+    assert run(tmp_path, text) == 0
+
+
+def test_microseconds_take_the_greek_mu_as_well_as_the_micro_sign(tmp_path, capsys):
+    text = """
+    [scenario]
+    board = "nucleo-f746"
+    duration = "40000\u03bcs"
+    """
+    assert run(tmp_path, text) == 0
+
+
+@pytest.mark.parametrize("timeout", ["2", True])
+def test_a_wait_timeout_without_a_unit_is_refused_as_run_refuses_it(timeout):
+    """docs/pytest.md: a number of seconds or a string with a unit; run(seconds="2") is refused,
+    and wait_until had taken "2" as 2 s and True as 1 s."""
+    sim = mcusim.load("nucleo-f746", firmware=False)
+    with pytest.raises(McusimError, match="expected a number of seconds or a duration with a unit"):
+        wait_until(sim, lambda: False, timeout=timeout)
+    sim.close()
