@@ -193,3 +193,20 @@ def test_a_wait_timeout_without_a_unit_is_refused_as_run_refuses_it(timeout):
     with pytest.raises(McusimError, match="expected a number of seconds or a duration with a unit"):
         wait_until(sim, lambda: False, timeout=timeout)
     sim.close()
+
+
+def test_equals_tells_a_boolean_from_a_number(tmp_path, capsys):
+    """A boolean equals only a boolean: ``equals = 0`` against the bench controller's
+    ``motors_enabled``, false, fails (it had passed: Python's 0 == False); ``equals = false``
+    passes."""
+    text = """
+    [scenario]
+    board = "ciaa-edu"
+    duration = "10ms"
+
+    [[expect]]
+    summary = "firmware.motors_enabled"
+    equals = {v}
+    """
+    assert run(tmp_path, text.format(v="false")) == 0
+    assert run(tmp_path, text.format(v="0")) == 1

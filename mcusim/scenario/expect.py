@@ -245,7 +245,10 @@ def _in_range(got, c):
 
 
 def _equals(got, c):
-    return _plain(got) == c["equals"]
+    got, want = _plain(got), c["equals"]
+    if isinstance(got, bool) != isinstance(want, bool):
+        return False        # true is no number here: equals = 1 does not match a flag that is true
+    return got == want
 
 
 def _contains(got, c):
