@@ -166,22 +166,10 @@ def test_set_takes_a_list_as_the_command_lines_8_9(tmp_path, capsys):
     assert run(tmp_path, bad) == 2
 
 
-def test_an_empty_description_is_free_text(tmp_path, capsys):
-    text = """
-    [scenario]
-    board = "nucleo-f746"
-    duration = "10ms"
-    description = ""
-    """
-    assert run(tmp_path, text) == 0
-
-
-def test_microseconds_take_the_greek_mu_as_well_as_the_micro_sign(tmp_path, capsys):
-    text = """
-    [scenario]
-    board = "nucleo-f746"
-    duration = "40000\u03bcs"
-    """
+@pytest.mark.parametrize("line", ['duration = "10ms"\ndescription = ""',      # free text, empty too
+                                  'duration = "40000\u03bcs"'])                   # the Greek mu
+def test_an_empty_description_and_microseconds_in_greek_mu_are_accepted(tmp_path, capsys, line):
+    text = '[scenario]\nboard = "nucleo-f746"\n' + line + "\n"
     assert run(tmp_path, text) == 0
 
 
