@@ -196,7 +196,6 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         self._lazy = [None] * 5         # time of a CCxIF set not scheduled as an event
         self._inp = {1: TiInput(self.kernel, 1, self._ti_apply), 2: TiInput(self.kernel, 2, self._ti_apply)}
         self._steady, self._uif_lazy = False, None   # fast engine (tim_steady)
-        self._wave_pol = [0] * 5
         self._enc_lazy = None           # fast engine: a lazy encoder stretch (tim_lazy)
         for ch in (1, 2):
             # outside encoder mode the inputs are ignored, so a waveform on them needs no edges;
@@ -348,7 +347,6 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
         sr_before = self.value["SR"]
         if self._steady:
             self._steady_flush(now)
-            self._steady_ref(now)
             self._steady = False
         self._uif_lazy = None
         sr = self.value["SR"]
@@ -577,21 +575,6 @@ class Tim(EncoderStage, LazyEncoderStage, SteadyStage, Peripheral):
                     self._plan()
         if self._enc_lazy is not None:
             self._lazy_after_write()
-
-    def _await_update(self) -> None:
-        """Fast engine, steady, synced to now: a write went into a preload register (CCRx with
-        OCxPE, ARR with ARPE, PSC), so nothing changes before the next wrap, which now needs its
-        event. What _plan would do, without re-deriving what the write did not change: the wrap
-        event, the waveforms ending there, and the lazy flags up to it (the wrap sets UIF)."""
-        t_wrap = self._t_wrap
-        self._ev_wrap = self.kernel.at(t_wrap, self._on_wrap)
-        self._uif_lazy = None
-        lazy = self._lazy
-        for ch in CHANNELS:
-            if lazy[ch] is not None and lazy[ch] >= t_wrap:
-                lazy[ch] = None
-        self._publish_waves()
-        self._steady_lazy(self.kernel.now)
 
     def _read_sr(self, stored: int) -> int:
         if self._enc_lazy is not None:

@@ -81,7 +81,6 @@ class SteadyStage:
         return 0 < c <= self._arr if self._up else c < self._arr
 
     def _publish_waves(self) -> None:
-        self._wave_pol = list(self._pol)    # OCx = OCxREF xor CCxP as published
         for ch in (1, 2, 3, 4):
             w = self._channel_wave(ch, self._t_wrap)
             port = self.oc[ch]
@@ -92,6 +91,21 @@ class SteadyStage:
             old = port.wave
             if old is None or not old.same_shape(w):
                 port.set_wave(w)
+
+    def _await_update(self) -> None:
+        """Synced to now: a write went into a preload register (CCRx with OCxPE, ARR with ARPE,
+        PSC), so nothing changes before the next wrap, which now needs its event. What _plan
+        would do, without re-deriving what the write did not change: the wrap event, the
+        waveforms ending there, and the lazy flags up to it (the wrap sets UIF)."""
+        t_wrap = self._t_wrap
+        self._ev_wrap = self.kernel.at(t_wrap, self._on_wrap)
+        self._uif_lazy = None
+        lazy = self._lazy
+        for ch in (1, 2, 3, 4):
+            if lazy[ch] is not None and lazy[ch] >= t_wrap:
+                lazy[ch] = None
+        self._publish_waves()
+        self._steady_lazy(self.kernel.now)
 
     # --- lazy counter and flags ----------------------------------------------------------------
     def _steady_cnt_at(self, t: int) -> int:
@@ -108,8 +122,6 @@ class SteadyStage:
         if k <= 0:
             return
         self._steady_flush(now)
-        if self._t_wrap <= now:
-            self._wrap_refs()
         m = self._arr + 1
         self._cnt = (self._cnt + k) % m if self._up else (self._cnt - k) % m
         self._tb += k * self._tick
@@ -146,27 +158,6 @@ class SteadyStage:
                 self._lazy[ch] = t if limit is None or (t is not None and t < limit) else None
         if self._ev_wrap is None and not self.value["CR1"] & _UDIS and self._uif_lazy is None:
             self._uif_lazy = self._next_wrap(after)
-
-    def _wrap_refs(self) -> None:
-        """A wrap passed without its event: OCxREF of the PWM channels no published waveform
-        describes (output disabled, or a constant level) as the edge-by-edge engine's wrap leaves
-        it, the comparison at the wrap's count (its compare matches refresh only a driven output,
-        so a disabled channel's OCxREF holds that until the next wrap or register write; a
-        switch to frozen mode keeps it)."""
-        cnt = 0 if self._up else self._arr
-        for ch in (1, 2, 3, 4):
-            m = self._mode[ch]
-            if m in (_PWM1, _PWM2) and self.oc[ch].wave is None:
-                c = self._ccr[ch]
-                self._ref[ch] = ((cnt < c) if self._up else (cnt <= c)) ^ (m == _PWM2)
-
-    def _steady_ref(self, now: int) -> None:
-        """OCxREF now of the channels whose output is a published waveform (no match event kept
-        _ref up to date; a switch to frozen mode keeps it)."""
-        for ch in (1, 2, 3, 4):
-            w = self.oc[ch].wave
-            if w is not None:
-                self._ref[ch] = w.level_at(now) ^ self._wave_pol[ch]
 
     def _steady_flush(self, now: int) -> None:
         """Set the flags of matches and wraps due by ``now`` (SR is about to be seen or changed)."""
