@@ -116,8 +116,8 @@ def _member_motors(sim, mname: str, member: dict) -> list[str]:
 
 def firmware_columns(sim) -> list[tuple[str, object]]:
     """(column, getter) of the firmware variables each member's firmware exposes: the firmware
-    declares them (``csv_columns(motors)``, ``motors`` the member's motor names as columns take
-    them), so that this module knows no firmware."""
+    declares them (``csv_columns(motors, member)``: the member's motor names as columns take
+    them, and its name in a system), so that this module knows no firmware."""
     cols: list[tuple[str, object]] = []
     for mname, member in sim.members.items():
         fw = member.get("firmware")

@@ -20,10 +20,28 @@ checked for its type only.
 from __future__ import annotations
 
 import math
+import struct
 
 from .errors import ConfigError
 
 _TRUE, _FALSE = ("true", "1", "yes", "on"), ("false", "0", "no", "off")
+
+
+def shortest_f32(value: float) -> float:
+    """The shortest decimal that is the same float32 as ``value`` (itself a float32 widened), as
+    C's printf("%g") round trip gives it: 1.57f reads as 1.57, not 1.5700000524520874. A host reads
+    a firmware's float messages so (an image's f32 topics, the ControlMotor port's)."""
+    if not math.isfinite(value):
+        return value
+    raw = struct.pack("<f", value)
+    for digits in range(1, 10):
+        d = float(f"{value:.{digits}g}")
+        try:
+            if struct.pack("<f", d) == raw:
+                return d
+        except OverflowError:               # rounded past the largest float32
+            continue
+    return value
 
 
 def fmt_number(x) -> str:

@@ -156,7 +156,7 @@ class Simulation:
     def _ticks_of(self, arg: str, value) -> int:
         """``run(seconds=...)`` or ``run(until=...)`` in base ticks, rounded to the nearest one; a
         positive time shorter than half a tick (which would round to no time at all) is refused."""
-        if isinstance(value, bool) or (isinstance(value, str) and _bare_number(value)):
+        if unitless(value):
             raise McusimError(f"run({arg}={value!r}): expected a number of seconds or a duration with a "
                               "unit (\"2ms\"), as the command line and scenarios take it")
         ticks = self.timebase.ticks(value, rounding=True)
@@ -230,7 +230,7 @@ class Simulation:
     def _sample_of(self, what: str, sample):
         """A trace's ``sample``: a number of seconds or a duration with a unit (a string without
         one, ``"50"``, is refused as run(seconds=...) refuses it, not taken as 50 s)."""
-        if isinstance(sample, bool) or (isinstance(sample, str) and _bare_number(sample)):
+        if unitless(sample):
             raise ConfigError(f"{what}(sample={sample!r}): expected a number of seconds or a duration "
                               "with a unit (\"50us\"), as the command line and scenarios take it")
         return sample
@@ -317,6 +317,12 @@ def _bare_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def unitless(value) -> bool:
+    """A time argument the API refuses: a bool, or a string without a unit ("50"), which the
+    command line and scenarios would not take as seconds (a number of seconds is an int or float)."""
+    return isinstance(value, bool) or (isinstance(value, str) and _bare_number(value))
 
 
 def load(board: str, firmware=True, overrides: dict | None = None, **kw) -> Simulation:

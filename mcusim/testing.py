@@ -106,8 +106,8 @@ def _lambda_of(fn, lambdas, lines) -> list:
 def _ticks(sim, duration, what: str = "timeout") -> int:
     """Seconds or a duration string ("500ms") to base ticks, rounded to the nearest tick; a bool or
     a string without a unit ("2") is refused, as ``run(seconds=...)`` refuses it."""
-    from .sim import _bare_number
-    if isinstance(duration, bool) or (isinstance(duration, str) and _bare_number(duration)):
+    from .sim import unitless
+    if unitless(duration):
         raise McusimError(f"{what}={duration!r}: expected a number of seconds or a duration with a unit "
                           "(\"2ms\"), as run(seconds=...), the command line and scenarios take it")
     return sim.timebase.ticks(duration, rounding=True)

@@ -135,7 +135,7 @@ class VcdTrace:
         if ps != self._pend_ps:
             self._write_pending()
             self._pend_ps = ps
-        self._pend.append((self._order[var], len(self._pend), var, value))
+        self._pend.append((self._order[var], var, value))
 
     def _write_pending(self) -> None:
         """Each variable's last value of the timestamp: a change undone within one tick is no
@@ -145,7 +145,7 @@ class VcdTrace:
         if self._pend:
             ps, change = self._pend_ps, self.w.change
             last = {}
-            for order, _, var, value in self._pend:
+            for order, var, value in self._pend:
                 last[order] = (var, value)
             for order in sorted(last):
                 var, value = last[order]

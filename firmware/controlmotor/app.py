@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import partial
 
-import numpy as np
 from mcusim.fw.controlmotor import VARIANTS
 from mcusim.fw.controlmotor.encoder import (
     Encoder,
@@ -35,7 +34,7 @@ from mcusim.fw.stm32hal.rcc import SystemCoreClock
 from mcusim.fw.stm32hal.regs import Stm32f7
 
 from mcusim.errors import ConfigError
-from mcusim.params import Param, firmware_params
+from mcusim.params import Param, firmware_params, shortest_f32
 
 TIM3_IRQn, TIM4_IRQn = 29, 30
 configTICK_RATE_HZ = 1000
@@ -116,7 +115,7 @@ class ControlMotorFirmware:
     def set_point(self, motor: int) -> float:
         """The PID's set point (a float32 in the C) as the shortest decimal of that float32, as a
         host reads a float: the 1.57 published reads 1.57."""
-        return float(str(self.pid.pids[motor - 1].set_point))
+        return shortest_f32(float(self.pid.pids[motor - 1].set_point))
 
     def csv_columns(self, motors: list[str], member: str) -> list[tuple[str, object]]:
         """(column, getter) of the variables a CSV trace samples (mcusim.csvtrace): per motor the
@@ -224,7 +223,7 @@ class ControlMotorFirmware:
                 t = self.topics[f"/motor{n}/get_pos"]
                 # a float message: the host reads it as the shortest decimal of the float32, as it
                 # reads an image's f32 topic (docs/firmware.md)
-                t.value = float(str(np.float32(encoder_get_position(self.enc[b]))))
+                t.value = shortest_f32(encoder_get_position(self.enc[b]))
                 t.count += 1
             wake += period_ticks
             await self.rtos.delay_until(wake)

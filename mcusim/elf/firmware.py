@@ -22,25 +22,11 @@ from pathlib import Path
 from unicorn import UC_HOOK_CODE
 
 from ..errors import ConfigError
+from ..params import shortest_f32
 from ..schema import parse_toml
 
 TYPES = {"bool": "<?", "u8": "<B", "i8": "<b", "u16": "<H", "i16": "<h", "u32": "<I", "i32": "<i",
          "f32": "<f", "f64": "<d"}
-
-
-def _shortest_f32(value: float, raw: bytes) -> float:
-    """The shortest decimal that is this float32 (as C's printf("%g") round trip would give):
-    1.57f reads back as 1.57, not 1.5700000524520874, so it equals what the host published."""
-    if not math.isfinite(value):
-        return value
-    for digits in range(1, 10):
-        d = float(f"{value:.{digits}g}")
-        try:
-            if struct.pack("<f", d) == raw:
-                return d
-        except OverflowError:               # rounded past the largest float32
-            continue
-    return value
 
 
 class ElfTopic:
@@ -195,7 +181,7 @@ class ElfFirmware:
             raise ConfigError(f"no topic {name!r}; topics: {', '.join(self.topics) or 'none'}")
         raw = self.core.read(t.address, t.size)
         value = struct.unpack(t.fmt, raw)[0]
-        return _shortest_f32(value, raw) if t.type == "f32" else value
+        return shortest_f32(value) if t.type == "f32" else value
 
     def summary(self) -> dict:
         core = self.core

@@ -232,6 +232,6 @@ class SteadyDrive:
                     i1 = tr.at(k * P + r)[0]
                 # the angle turned from the angles turned since the chunk start (an absolute
                 # angle's difference loses its rounding at the angle's scale: Bts7960Bridge._turned)
-                dth = tr.dtheta(k * P + end) - tr.dtheta(k * P + st)
+                dth = self._turned(tr, 0, k * P + st, k * P + end)
                 total += c * (v * (end - st) * inv - L * (i1 - xs[0]) - K * dth) / rt
         return float(total)

@@ -191,12 +191,12 @@ _SUMMARY_WHEN_ANY = {"warnings": []}
 def _summary_keys(v, parts):
     """The keys a dotted path names in the summary ``v``: at each level the longest run of the
     path's parts that is a key there, so that keys holding a dot are reachable (a system's
-    motors: ``motors.mcm1.motor.speed_rpm``). Returns (keys, None), or (keys so far, the
-    dictionary where no key matched)."""
+    motors: ``motors.mcm1.motor.speed_rpm``). Returns (keys, None, _), or (keys so far, the
+    value where no key matched, the index of the first part left)."""
     keys, i = [], 0
     while i < len(parts):
         if not isinstance(v, dict):
-            return keys, v
+            return keys, v, i
         for j in range(len(parts), i, -1):
             k = ".".join(parts[i:j])
             if k in v:
@@ -204,8 +204,8 @@ def _summary_keys(v, parts):
                 v, i = v[k], j
                 break
         else:
-            return keys, v
-    return keys, None
+            return keys, v, i
+    return keys, None, i
 
 
 def _read_summary(sc, sim, e, line, where):
@@ -213,9 +213,8 @@ def _read_summary(sc, sim, e, line, where):
     parts = path.split(".")
     if path in _SUMMARY_WHEN_ANY:
         return lambda: sim.summary().get(path, _SUMMARY_WHEN_ANY[path])
-    keys, stuck = _summary_keys(sim.summary(), parts)
+    keys, stuck, done = _summary_keys(sim.summary(), parts)
     if stuck is not None:
-        done = sum(k.count(".") + 1 for k in keys)      # the parts the keys found took
         there = ", ".join(stuck) if isinstance(stuck, dict) else "none"
         raise sc._err(line, f"{where}: summary has no {'.'.join(parts[:done + 1])!r} (keys there: {there})")
 

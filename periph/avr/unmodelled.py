@@ -52,7 +52,7 @@ class AvrUnmodelled(Peripheral):
     BUS_WIDTH = 1
     ACCESS_SIZES = (1,)          # the AVR data bus is 8 bits wide
 
-    def __init__(self, name: str, free, mcu=None) -> None:
+    def __init__(self, name: str, free, mcu) -> None:
         regs = [Register(reg, addr, reset=reset, width=8,
                          fields=(Field(reg, 0, 8, modelled=False, doc=f"{unit} is not modelled"),))
                 for reg, addr, reset, unit in UNITS if addr in free]
@@ -77,7 +77,7 @@ class AvrUnmodelled(Peripheral):
                 self._wd_timed = None
             if not data & WDE:
                 return
-            if data & WDCE and self.mcu is not None:
+            if data & WDCE:
                 k = self.mcu.kernel
                 self._wd_timed = k.at(k.now + 4 * self.mcu.core_clock.period, self._wd_left_on, data & 0xFF)
                 return

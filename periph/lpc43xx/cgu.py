@@ -45,7 +45,7 @@ from fractions import Fraction
 from functools import partialmethod
 from typing import ClassVar
 
-from mcusim.errors import UnsupportedConfiguration
+from mcusim.errors import ConfigError, UnsupportedConfiguration
 from mcusim.registers import Field, Peripheral, Register
 
 IRC_HZ = 12_000_000
@@ -409,7 +409,6 @@ class BaseClockUser:
 
     def _init_base_clock(self, base_clock: str) -> None:
         if base_clock and base_clock not in BASE_CLOCKS:
-            from mcusim.errors import ConfigError
             raise ConfigError(f"{self.name}: base_clock {base_clock!r} is not one of the CGU's "
                               f"({', '.join(BASE_CLOCKS)})")
         self.base_clock = base_clock or None
