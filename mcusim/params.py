@@ -102,6 +102,22 @@ def coerce(value, kind, what: str):
     return value
 
 
+def _hertz(text: str, what: str, kind):
+    """A frequency written with its unit (``"400kHz"``) for a parameter in hertz: a number of
+    hertz (a whole one for an integer parameter), or ConfigError naming ``what``."""
+    from .errors import TimeError
+    from .time import parse_frequency
+    try:
+        hz = parse_frequency(text)
+    except TimeError as exc:
+        raise ConfigError(f"{what}: {exc}") from None
+    if kind is int:
+        if hz.denominator != 1:
+            raise ConfigError(f"{what} = {_show(text)}: expected a whole number of hertz")
+        return int(hz)
+    return float(hz)
+
+
 class Param:
     """A declared value: default, type, range or choices, unit and a line of documentation."""
 
@@ -144,6 +160,9 @@ class Param:
             hits = [c for c in self.choices if isinstance(c, str) and c.lower() in words]
             if len(hits) == 1:
                 value = hits[0]
+        given = value
+        if self.unit == "Hz" and isinstance(value, str) and value.strip().lower().endswith("hz"):
+            value = _hertz(value, what, self.kind)
         out = coerce(value, self.kind, what)
         if self.choices is not None:
             if out not in self.choices:
@@ -164,14 +183,15 @@ class Param:
                    or (self.above is not None and out <= self.above)
                    or (self.below is not None and out >= self.below))
             if bad:
-                raise ConfigError(f"{what} = {_show(value)}: must be {self.range_text()}")
+                raise ConfigError(f"{what} = {_show(given)}: must be {self.range_text()}")
         return out
 
     def check_file(self, value, what: str):
         """:meth:`check` for a value written in a profile (TOML has types of its own): a number, a
         true/false or a list written as text (``counts_per_rev = "48"``) is refused, not read as
         one; a ``--set`` value arrives as text and goes to :meth:`check`."""
-        if isinstance(value, str) and self.kind in (int, float, bool, tuple, list):
+        if isinstance(value, str) and self.kind in (int, float, bool, tuple, list) and not (
+                self.unit == "Hz" and value.strip().lower().endswith("hz")):
             want = {int: "an integer", float: "a number", bool: "true or false"}.get(self.kind, "a list")
             raise ConfigError(f"{what} = {_show(value)}: expected {want}, not text (write it without quotes)")
         if isinstance(value, (tuple, list)) and self.items is not None and self.kind in (tuple, list):

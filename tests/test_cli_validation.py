@@ -5,6 +5,8 @@ import json
 import os
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mcusim
 from mcusim.cli import main
@@ -325,3 +327,47 @@ def test_a_duration_in_a_message_is_shown_in_a_unit_that_reads(text, shown):
     from mcusim.params import fmt_duration
     from mcusim.time import parse_duration
     assert fmt_duration(parse_duration(text)) == shown
+
+
+@settings(max_examples=40, deadline=None)
+@given(hz=st.integers(10_000, 1_000_000), unit=st.sampled_from(["Hz", "kHz", "MHz"]))
+def test_a_parameter_in_hertz_takes_a_frequency_with_its_unit_as_that_many_hertz(hz, unit):
+    """README "Command line": a parameter declared in Hz takes ``400kHz`` as 400000, written
+    either way; the value is exact (no float rounding of ``0.4MHz``)."""
+    from fractions import Fraction
+
+    from mcusim.params import Param
+    scale = {"Hz": 1, "kHz": 1000, "MHz": 1_000_000}[unit]
+    text = f"{Fraction(hz, scale).numerator / Fraction(hz, scale).denominator!r}{unit}"
+    if Fraction(text[:-len(unit)]) * scale != hz:
+        return          # the decimal shown does not hold the value exactly (e.g. 1/3 kHz)
+    p = Param(100_000, min=10_000, max=1_000_000, unit="Hz")
+    assert p.check(text, "f") == hz == p.check(str(hz), "f")
+    assert p.check_file(text, "f") == hz
+
+
+@pytest.mark.parametrize("value, needle", [
+    ("2MHz", "firmware.i2c_frequency = '2MHz': must be from 10000 to 1000000 Hz"),
+    ("100.0005kHz", "expected a whole number of hertz"),
+    ("fastHz", "bad frequency"),
+    ("400kbaud", "expected an integer"),
+])
+def test_a_frequency_parameter_out_of_range_or_not_whole_is_named_as_written(capsys, value, needle):
+    _usage_error(capsys, ["run", "ciaa-edu", "--duration", "10ms", "--set", f"firmware.i2c_frequency={value}"],
+                 needle)
+
+
+def test_the_scl_frequency_given_with_a_unit_sets_the_i2c_clock_registers_as_the_number_does():
+    """400kHz reaches NuttX's lpc43_i2c_setfrequency as 400000: above 100 kHz it splits the period
+    47:83, SCLH = 204 MHz / 130 * 47 / f = 184 and SCLL = 204 MHz / 130 * 83 / f = 325 (C integer
+    arithmetic), read back from I2C0 once the controller has polled the bus."""
+    regs = []
+    for value in ("400kHz", 400000):
+        sim = mcusim.load("ciaa-edu", overrides={"firmware.i2c_frequency": value})
+        try:
+            sim.run(seconds=0.05)
+            i2c0 = next(p for p in sim.peripherals() if p.name == "I2C0")
+            regs.append((i2c0.value["SCLH"], i2c0.value["SCLL"]))
+        finally:
+            sim.close()
+    assert regs[0] == regs[1] == (204_000_000 // 130 * 47 // 400_000, 204_000_000 // 130 * 83 // 400_000)
