@@ -52,7 +52,10 @@ def shipped_text(board: str) -> str:
 def read_profile(board: str) -> tuple[dict, str]:
     """The parsed and checked profile of a board name (``nucleo-f746``) or a path to a .toml
     file. Any mistake raises ConfigError ``<file>:<line>: <problem>``."""
-    if not isinstance(board, (str, Path)) or not str(board).strip():
+    if not isinstance(board, (str, Path)):
+        raise ConfigError(f"board = {board!r:.60}: expected a board name or the path of a .toml file; "
+                          f"known boards: {', '.join(board_names())}")
+    if not str(board).strip():
         raise ConfigError(f"no board given; known boards: {', '.join(board_names())}")
     path = Path(board)
     if path.suffix == ".toml" or path.exists() or "/" in str(board):

@@ -10,7 +10,7 @@ from fractions import Fraction
 
 from .engine import DEFAULT_ENGINE, ENGINES
 from .errors import ConfigError
-from .params import fmt_duration, user_duration
+from .params import _show, fmt_duration, user_duration
 
 MAX_DURATION = Fraction(600)        # simulated seconds a run may last unless --max-duration says more
 MIN_SAMPLE = Fraction(1, 10**6)     # the finest --sample and --vcd-sample grid: 1 us
@@ -92,16 +92,18 @@ def _sample(text: str) -> Fraction:
 
 
 def _port(text: str) -> int:
-    if not text.isdigit() or not 0 < int(text) < 65536:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a TCP port number from 1 to 65535")
+    if not text.isdigit() or len(text) > 5 or not 0 < int(text) < 65536:
+        raise argparse.ArgumentTypeError(f"{_show(text)}: expected a TCP port number from 1 to 65535")
     return int(text)
 
 
 def _repeat(text: str) -> int:
     try:
-        n = int(text)
+        n = int(text) if len(text) <= 20 else None
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number") from None
+        n = None
+    if n is None:
+        raise argparse.ArgumentTypeError(f"{_show(text)}: expected a whole number from 1 to 100")
     if not 1 <= n <= 100:
         raise argparse.ArgumentTypeError(f"{n}: must be from 1 to 100")
     return n

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import struct
+import sys
 
 from .errors import ConfigError
 
@@ -49,7 +50,12 @@ def fmt_number(x) -> str:
     if isinstance(x, bool):
         return str(x).lower()
     if isinstance(x, int):
-        return str(x) if abs(x) < 10**12 else f"{x:.6g}"
+        if abs(x) < 10**12:
+            return str(x)
+        if abs(x) <= sys.float_info.max:
+            return f"{x:.6g}"
+        digits = str(abs(x))        # beyond a float: the leading digits and the power of ten
+        return f"{'-' if x < 0 else ''}{digits[0]}.{digits[1:6]}e+{len(digits) - 1}"
     try:
         f = float(x)
     except (TypeError, ValueError, OverflowError):
@@ -70,6 +76,8 @@ def coerce(value, kind, what: str):
     if kind is bool:
         if isinstance(value, bool):
             return value
+        if isinstance(value, (int, float)) and value in (0, 1):
+            return bool(value)      # 0 and 1 as numbers of any type, as their text reads
         text = str(value).strip().lower()
         if text in _TRUE:
             return True
@@ -88,6 +96,8 @@ def coerce(value, kind, what: str):
             raise ConfigError(f"{what} = {_show(value)}: expected {want}") from None
         if isinstance(out, float) and not math.isfinite(out):
             raise ConfigError(f"{what} = {_show(value)}: expected a finite number")
+        if isinstance(out, int) and not -FLOAT_MAX <= out <= FLOAT_MAX:
+            raise ConfigError(f"{what} = {_show(value)}: too large (beyond ±1.8e308, the largest number)")
         if kind is int:
             if isinstance(out, float) and not out.is_integer():
                 raise ConfigError(f"{what} = {_show(value)}: expected {want}")
@@ -116,6 +126,11 @@ def _hertz(text: str, what: str, kind):
             raise ConfigError(f"{what} = {_show(text)}: expected a whole number of hertz")
         return int(hz)
     return float(hz)
+
+
+#: the largest finite float: an integer beyond it (TOML and ``--set`` read 400 nines as one) is no
+#: number a model can compute with
+FLOAT_MAX = sys.float_info.max
 
 
 class Param:

@@ -248,6 +248,9 @@ class Bus:
 
     def attach(self, base: int, periph: Peripheral, size: int | None = None) -> None:
         size = periph.SIZE if size is None else size
+        if base + size > 1 << 32:
+            raise ValueError(f"{periph.name} at {base:#x} (size {size:#x}) runs past the end of the 4 GiB "
+                             "address space")
         i = bisect.bisect(self._bases, base)
         if (i > 0 and self._entries[i - 1][0] + self._entries[i - 1][1] > base) or \
                 (i < len(self._entries) and base + size > self._entries[i][0]):

@@ -14,7 +14,7 @@ import tomllib
 
 from .errors import ConfigError, TimeError
 from .kinds import CORES, lookup
-from .params import Param, _show
+from .params import FLOAT_MAX, Param, _show
 from .scenario.source import _Lines
 from .time import parse_frequency
 
@@ -58,7 +58,7 @@ def parse_toml(text: str, where: str) -> dict:
     byte-order mark (which Windows editors put at the start of a UTF-8 file) is skipped."""
     text = text.removeprefix("\ufeff")
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except RecursionError:
         raise ConfigError(f"{where}: invalid TOML: nested too deeply") from None
     except tomllib.TOMLDecodeError as exc:
@@ -68,6 +68,29 @@ def parse_toml(text: str, where: str) -> dict:
             raise ConfigError(f"{where}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
         line = text.count("\n") + 1 if "end of document" in msg else 1
         raise ConfigError(f"{where}:{line}: invalid TOML: {msg}") from None
+    huge = _huge_int(data)
+    if huge is not None:
+        key, value = huge
+        digits = str(abs(value))[:20]
+        line = next((n for n, row in enumerate(text.splitlines(), 1) if digits in row.replace("_", "")), None)
+        raise ConfigError(f"{where}:{line}: {key} = {_show(value)}: too large (beyond ±1.8e308, the largest number)"
+                          if line else f"{where}: {key} = {_show(value)}: too large (beyond ±1.8e308, the largest number)")
+    return data
+
+
+def _huge_int(data, key=""):
+    """(key path, value) of the first integer in parsed TOML ``data`` beyond the float range, or
+    None: TOML reads 400 nines as one integer, which no model computes with (it would overflow
+    where it meets a float, far from the file)."""
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for k, v in items:
+        path = f"{key}.{k}" if isinstance(k, str) and key else f"{key}[{k}]" if not isinstance(k, str) else k
+        if isinstance(v, int) and not isinstance(v, bool) and not -FLOAT_MAX <= v <= FLOAT_MAX:
+            return path, v
+        got = _huge_int(v, path)
+        if got is not None:
+            return got
+    return None
 
 
 def read_profile_text(data: bytes, where: str) -> Profile:

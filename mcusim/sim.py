@@ -105,12 +105,7 @@ class Simulation:
         so steps that are not whole ticks add up their roundings; ``until`` is an absolute end.
         ``stop()``, if given, is checked after every event; the run ends at the event that makes it
         true (``mcusim.testing.wait_until`` is built on it)."""
-        if self._over is not None:
-            if self._over.startswith("stopped"):
-                raise McusimError(f"run(): this simulation {self._over}, so it cannot run on (load the "
-                                  "board again)")
-            raise McusimError(f"run(): this simulation was {self._over}: its firmware's tasks are ended, "
-                              "so it cannot run on (load the board again)")
+        self._going("run()")
         if stop is not None and not callable(stop):
             raise McusimError(f"run(stop={stop!r:.60}): stop is a function called after every event "
                               "(the run ends when it returns true)")
@@ -175,7 +170,19 @@ class Simulation:
                               "it takes no topics or inputs")
         return self.firmware
 
+    def _going(self, what: str) -> None:
+        """McusimError naming ``what`` where the simulation cannot run on (closed, discarded or
+        stopped on an error): a command, a trace or a link added then would never be seen."""
+        if self._over is None:
+            return
+        if self._over.startswith("stopped"):
+            raise McusimError(f"{what}: this simulation {self._over}, so it cannot run on (load the "
+                              "board again)")
+        raise McusimError(f"{what}: this simulation was {self._over}: its firmware's tasks are ended, "
+                          "so it cannot run on (load the board again)")
+
     def publish(self, topic: str, value) -> None:
+        self._going(f"publish({topic!r:.60})")
         self._fw().publish(topic, value)
 
     def topic(self, name: str):
@@ -185,6 +192,7 @@ class Simulation:
         """Connect a UART (``"USART2"``) to a host endpoint: ``"pty"`` (a pseudo terminal; its
         ``path`` is what pyserial or pymavlink opens), ``"buffer"`` (in memory: ``.sent``, the recent
         bytes sent, and ``.feed()``), or an endpoint object. Returns the endpoint."""
+        self._going(f"connect_serial({uart!r:.40})")
         from .hostserial import BufferEndpoint, PtyEndpoint
         if member is not None and member not in self.members:
             raise ConfigError(f"connect_serial(member={member!r}): no such board; boards: "
@@ -236,6 +244,7 @@ class Simulation:
         return sample
 
     def trace_vcd(self, path, sample="50us"):
+        self._going("trace_vcd()")
         from .trace import VcdTrace
         tr = VcdTrace(self, path, sample=self._sample_of("trace_vcd", sample))
         self._traces.append(tr)
@@ -243,6 +252,7 @@ class Simulation:
 
     def trace_csv(self, path=None, sample="1ms", keep: bool = False):
         """Plant and firmware variables on a uniform grid (:class:`mcusim.csvtrace.CsvTrace`)."""
+        self._going("trace_csv()")
         from .csvtrace import CsvTrace
         tr = CsvTrace(self, path, sample=self._sample_of("trace_csv", sample), keep=keep)
         self._traces.append(tr)
@@ -251,6 +261,7 @@ class Simulation:
     def trace_registers(self, path_or_file, filter=None):
         """Log every firmware register access from now on as JSON lines (:mod:`mcusim.reglog`;
         ``mcusim.reglog.load_logged`` also catches the accesses made while the firmware starts)."""
+        self._going("trace_registers()")
         from .reglog import RegisterLog
         log = RegisterLog(self, path_or_file, filter=filter)
         self._traces.append(log)

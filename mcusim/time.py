@@ -23,7 +23,11 @@ _NUM = r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*"
 
 
 def _number(text: str) -> Fraction:
-    return Fraction(text)  # Fraction parses decimal and exponent notation exactly
+    try:
+        return Fraction(text)  # Fraction parses decimal and exponent notation exactly
+    except ValueError:      # Python's limit of 4300 digits for an integer read from text
+        shown = text.strip()
+        raise TimeError(f"bad number {shown[:12]}...{shown[-4:]}: too many digits ({len(shown)})") from None
 
 
 def _plain_number(value, what: str) -> Fraction:

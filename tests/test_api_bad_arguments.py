@@ -6,6 +6,7 @@ import pytest
 
 import mcusim
 from mcusim.errors import ConfigError, McusimError
+from mcusim.scenario import load_scenario, run_scenario
 from mcusim.testing import wait_until
 
 
@@ -143,3 +144,50 @@ def test_a_simulation_loaded_and_dropped_without_running_leaves_no_warning():
     out = subprocess.run([sys.executable, "-W", "error", "-c", code], check=False, capture_output=True,
                          text=True, timeout=120)
     assert out.returncode == 0 and "never awaited" not in out.stderr, out.stderr
+
+
+@pytest.mark.parametrize("call", [
+    lambda s, tmp: s.publish("/motor1/set_pos", 1.0),
+    lambda s, tmp: s.trace_vcd(tmp / "late.vcd"),
+    lambda s, tmp: s.trace_csv(tmp / "late.csv"),
+    lambda s, tmp: s.trace_registers(tmp / "late.jsonl"),
+    lambda s, tmp: s.connect_serial("USART3", "buffer"),
+])
+def test_a_closed_simulation_refuses_commands_traces_and_links_as_run_does(tmp_path, call):
+    """After close() a command, a trace or a link would never be seen (nothing runs on): refused
+    as run() refuses, and no empty file is left behind."""
+    sim = mcusim.load("nucleo-f746")
+    sim.close()
+    with pytest.raises(McusimError, match="was closed"):
+        call(sim, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: mcusim.load(5), "board = 5: expected a board name or the path"),
+    (lambda: mcusim.load(["nucleo-f746"]), "expected a board name or the path"),
+    (lambda: mcusim.load("nucleo-f746", overrides={"motor1.R": 10 ** 400}), "too large"),
+])
+def test_load_names_a_board_or_a_number_of_the_wrong_kind(call, words):
+    with pytest.raises(ConfigError, match=words):
+        call()
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: run_scenario("step_response", overrides="x"), "overrides = 'x': expected a mapping"),
+    (lambda: load_scenario(None), r"load_scenario\(None\): expected the path"),
+    (lambda: load_scenario(5), r"load_scenario\(5\): expected the path"),
+    (lambda: load_scenario(""), "expected the path of a scenario file"),
+])
+def test_the_scenario_api_names_a_wrong_argument(call, words):
+    with pytest.raises(ConfigError, match=words):
+        call()
+
+
+@pytest.mark.parametrize("value, want", [(0, False), (1, True), (0.0, False), (1.0, True), ("off", False)])
+def test_a_switch_takes_zero_and_one_as_numbers_of_any_type(value, want):
+    """/motor1/enable = 0.0 had been refused as '= 0: expected true or false' while 0 was taken."""
+    from mcusim.params import Param
+    assert Param(True).check(value, "/motor1/enable") is want
+    with pytest.raises(ConfigError, match="expected true or false"):
+        Param(True).check(0.5, "/motor1/enable")

@@ -371,3 +371,44 @@ def test_the_scl_frequency_given_with_a_unit_sets_the_i2c_clock_registers_as_the
         finally:
             sim.close()
     assert regs[0] == regs[1] == (204_000_000 // 130 * 47 // 400_000, 204_000_000 // 130 * 83 // 400_000)
+
+
+HUGE = "9" * 400
+
+
+@pytest.mark.parametrize("board, key", [("nucleo-f746", "motor1.R"), ("nucleo-f746", "encoder1.counts_per_rev"),
+                                        ("nucleo-f746", "/motor1/set_pos"), ("nucleo-f746", "firmware.pid_period_ms"),
+                                        ("pro-mini", "velocity")])
+def test_an_integer_beyond_the_float_range_is_a_usage_error_naming_its_key(capsys, board, key):
+    """400 nines were read as one integer and overflowed where a model met a float (exit 1)."""
+    _usage_error(capsys, ["run", board, "--duration", "1ms", "--set", f"{key}={HUGE}"],
+                 f"{key} = 9.99999e+399: too large")
+
+
+@pytest.mark.parametrize("line", [f'torque = {{ motor = "motor1", nm = {HUGE} }}',
+                                  f'publish = {{ "/motor1/set_pos" = {HUGE} }}'], ids=["torque", "publish"])
+def test_an_integer_beyond_the_float_range_in_a_scenario_is_named_at_its_line(tmp_path, capsys, line):
+    sc = tmp_path / "s.toml"
+    sc.write_text(f'[scenario]\nboard = "nucleo-f746"\nduration = "10ms"\n\n[[at]]\ntime = "1ms"\n{line}\n')
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(sc)], f"{sc}:7:", "too large")
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["run", "nucleo-f746", "--duration", "1" * 5000 + "ms"], "too many digits (5000)"),
+    (["run", "nucleo-f746", "--duration", "1ms", "--sample", "1" * 5000 + "ms"], "too many digits (5000)"),
+    (["run", "nucleo-f746", "--duration", "1ms", "--gdb", "1" * 5000], "expected a TCP port number"),
+    (["bench", "nucleo-f746", "--repeat", "1" * 5000], "expected a whole number from 1 to 100"),
+], ids=["duration", "sample", "gdb", "repeat"])
+def test_a_number_with_thousands_of_digits_is_one_short_line(capsys, argv, needle):
+    """Python refuses to read an integer of more than 4300 digits: that was an internal error, or
+    argparse's 'invalid _duration value' echoing 5 KB."""
+    err = _usage_error(capsys, argv, needle)
+    assert len(err) < 300
+
+
+def test_a_peripheral_placed_past_the_end_of_the_address_space_is_refused_at_its_line(tmp_path, capsys):
+    text = mcusim.board.shipped_text("nucleo-f746")
+    assert "base = 0x40000400" in text          # TIM3
+    bad = tmp_path / "b.toml"
+    bad.write_text(text.replace("base = 0x40000400", "base = 0xFFFFFFF0"))
+    _usage_error(capsys, ["run", str(bad), "--duration", "1ms"], "TIM3 at 0xfffffff0", "past the end of the 4 GiB")

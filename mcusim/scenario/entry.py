@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from ..errors import ConfigError, McusimError, read_input
@@ -39,6 +40,9 @@ def load_scenario(path, duration=None) -> Scenario:
     """Parse and check a scenario file (a path, or the name of one in ``scenarios/``). Any
     mistake raises ConfigError ``<file>:<line>: <problem>``. ``duration``: the run's, where it is
     given instead of the file's (``--duration``): times up to the later end are the file's own."""
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise ConfigError(f"load_scenario({path!r:.60}): expected the path of a scenario file or the "
+                          f"name of a shipped one ({', '.join(scenario_names())})")
     p = _resolve(path)
     try:
         data = read_input(p, "scenario", 4 << 20)

@@ -5,6 +5,7 @@ expectations and report (:mod:`.expect`) to a simulation."""
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -218,6 +219,9 @@ class Scenario(Checker):
             raise self._err(self._line("scenario"), "the scenario names no board (board = \"...\" in "
                             "[scenario]); give one")
         self.check_board(board)
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise ConfigError(f"overrides = {overrides!r:.60}: expected a mapping of --set keys to values, "
+                              f'e.g. {{"motor1.R": 2.0}}')
         extra = dict(overrides or {})
         sets = {**self.overrides, **extra}
         try:
