@@ -47,6 +47,8 @@ def _usage_error(capsys, argv, *needles):
     ("nucleo-f746", "bridgeA.ocd_threshold=4.0", "I_ocd"),
     ("ciaa-edu", "firmware.critical_v=12", "must be below firmware.low_v"),
     ("elementall", "battery.ocv_full=11", "ocv_full = 11 V must be above ocv_empty"),
+    # was a run stopped at t = 2 ms (exit 1): the EDU-CIAA brings out ADC0_0 to ADC0_3 only
+    ("ciaa-edu", "firmware.battery_channel=7", "ADC0 channel 7 is not wired on this board (wired: 0, 1, 2, 3)"),
 ])
 def test_values_are_checked_against_their_declared_range(capsys, board, key, needle):
     err = _usage_error(capsys, ["run", board, "--duration", "1ms", "--set", key], needle)

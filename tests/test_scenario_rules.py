@@ -198,3 +198,51 @@ def test_equals_tells_a_boolean_from_a_number(tmp_path, capsys):
     """
     assert run(tmp_path, text.format(v="false")) == 0
     assert run(tmp_path, text.format(v="0")) == 1
+
+
+@pytest.mark.parametrize("source, check, needle", [
+    ('part = "motor1"\nattr = "kernel"', "min = 0", "'kernel' is not a value to read"),
+    ('part = "encoder1"\nattr = "motor"', "equals = 1", "'motor' is not a value to read"),
+    ('summary = "board"', "min = 0", "board is text ('nucleo-f746'), and min needs a number"),
+    ('summary = "simulated_s"', 'contains = "a"', "simulated_s is a number, and contains needs text"),
+    ('summary = "realtime_factor"', "min = 0", "measured on the machine"),
+    ('summary = "wall_s"', "max = 100", "measured on the machine"),
+], ids=["part-object", "encoder-motor", "text-min", "number-contains", "realtime", "wall"])
+def test_an_expectation_that_cannot_hold_is_a_usage_error_before_the_run(tmp_path, capsys, source, check, needle):
+    """A check of the wrong kind for its value, or of an object a part holds, had run and failed
+    at the end (exit 1; the object's repr, with a memory address, in the summary); the wall-clock
+    entries were None when expectations read them. Each is now refused at its line (exit 2)."""
+    rc = run(tmp_path, f"""
+        [scenario]
+        board = "nucleo-f746"
+        duration = "5ms"
+
+        [[expect]]
+        {source.replace(chr(10), chr(10) + '        ')}
+        {check}
+        """)
+    err = capsys.readouterr().err
+    assert rc == 2 and needle in err and re.search(r"s\.toml:\d+:", err), err
+
+
+def test_text_and_a_number_are_still_checked_with_the_checks_made_for_them(tmp_path, capsys):
+    rc = run(tmp_path, """
+        [scenario]
+        board = "nucleo-f746"
+        duration = "5ms"
+
+        [[expect]]
+        summary = "board"
+        contains = "nucleo"
+
+        [[expect]]
+        summary = "simulated_s"
+        approx = 0.005
+        tol = 1e-9
+
+        [[expect]]
+        part = "encoder1"
+        attr = "position"
+        equals = 0
+        """)
+    assert rc == 0, capsys.readouterr()

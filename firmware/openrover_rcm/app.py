@@ -176,6 +176,14 @@ class RoverControl:
             raise ConfigError(f"firmware.modules: address {twice:#04x} is given twice; each wheel's module "
                               "has its own")
         self.mcu, self.cpu, self.rtos = mcu, mcu.cpu, mcu.rtos
+        adc = mcu.periph.get("ADC0")
+        wired = getattr(adc, "inputs", None)
+        if wired is not None and p["battery_channel"] not in wired:
+            # the chip has eight channels; a board brings out some (the EDU-CIAA: ADC0_0 to _3), and
+            # converting one nothing is wired to is refused by the ADC model when it starts
+            raise ConfigError(f"firmware.battery_channel = {p['battery_channel']}: ADC0 channel "
+                              f"{p['battery_channel']} is not wired on this board (wired: "
+                              f"{', '.join(str(c) for c in sorted(wired))})")
         self.rtos.tick_hz = p["tick_hz"]
         self.board = CiaaBoard(mcu, adc_clkdiv=p["adc_clkdiv"])
         self.counts_per_wheel_rev = p["counts_per_motor_rev"] * p["gear_ratio"]

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from ..kernel import PRIO_OBSERVE
+from ..params import _show
 from .check import _fmt_time, _is_number
 
 PRIO_CHECK = PRIO_OBSERVE + 1      # expectations: after the observers (report samplers) of a tick
@@ -167,6 +168,12 @@ def _read_part(sc, sim, e, line, where):
         raise sc._err(sc._line("expect", e.index, "attr"),
                       f"{where}: part {name!r}: {attr!r} is a method, not a value to read "
                       f"(values: {', '.join(_values_of(part))})")
+    values = _values_of(part)
+    if attr not in values:
+        # an object the part holds (its kernel, the motor an encoder reads): no value to compare,
+        # and its repr, with a memory address, would land in the summary
+        raise sc._err(sc._line("expect", e.index, "attr"),
+                      f"{where}: part {name!r}: {attr!r} is not a value to read (values: {', '.join(values)})")
 
     def read():
         v = getattr(part, attr)
@@ -180,9 +187,13 @@ def _values_of(part) -> list[str]:
     names = set(getattr(part, "READERS", ()))
     for cls in type(part).__mro__:
         names.update(k for k, v in vars(cls).items() if isinstance(v, property) and not k.startswith("_"))
-    names.update(k for k, v in vars(part).items() if not k.startswith("_") and isinstance(v, (bool, int, float)))
+    names.update(k for k, v in vars(part).items()
+                 if not k.startswith("_") and isinstance(v, (bool, int, float, str)) and k != "name")
     return sorted(names)
 
+
+# summary entries of the wall clock: known only after the run, and different on every machine
+_SUMMARY_OF_THE_MACHINE = ("wall_s", "realtime_factor")
 
 # summary entries that are there only when they have something to say (checked as empty before)
 _SUMMARY_WHEN_ANY = {"warnings": []}
@@ -211,6 +222,9 @@ def _summary_keys(v, parts):
 def _read_summary(sc, sim, e, line, where):
     path = e.source[1]
     parts = path.split(".")
+    if parts[0] in _SUMMARY_OF_THE_MACHINE:
+        raise sc._err(line, f"{where}: summary {path!r} is measured on the machine that runs the "
+                      "simulation after it ends, not simulated: no expectation can check it")
     if path in _SUMMARY_WHEN_ANY:
         return lambda: sim.summary().get(path, _SUMMARY_WHEN_ANY[path])
     keys, stuck, done = _summary_keys(sim.summary(), parts)
@@ -273,12 +287,23 @@ def plan_expect(sc, sim, e: _Expect, end: int) -> tuple:
     if tick < sim.kernel.now:
         raise sc._err(e.line, f"{where}: time {_fmt_time(e.time)} is already past")
     test = CHECKS[next(iter(e.check))]
-    numeric = next(iter(e.check)) in ("approx", "min", "max")
-    if numeric and e.source[0] in ("topic", "part", "summary"):
+    kind = next(iter(e.check))
+    numeric = kind in ("approx", "min", "max")
+    if e.source[0] in ("topic", "part", "summary"):
         # (topics and part values are read without side effects; the summary before the run has
-        # its shape and the types of its values: a flag stays a flag, a table a table)
+        # its shape and the types of its values: a flag stays a flag, a table a table, text text;
+        # a value not known yet, None, may be anything at the end)
         now = read()
         label = ".".join(e.source[1:])
+        line = sc._line("expect", e.index, e.source[0])
+        if kind == "contains" and isinstance(now, (int, float)):
+            raise sc._err(line, f"{where}: {label} is {'true or false' if isinstance(now, bool) else 'a number'}, "
+                          f"and contains needs text or a list: check it with "
+                          f"{'equals' if isinstance(now, bool) else 'min, max or approx'}")
+        if numeric and isinstance(now, str):
+            raise sc._err(line, f"{where}: {label} is text ({_show(now)}), and {kind} needs a number: "
+                          f"check it with equals or contains")
+    if numeric and e.source[0] in ("topic", "part", "summary"):
         if isinstance(now, bool):
             raise sc._err(sc._line("expect", e.index, e.source[0]),
                           f"{where}: {label} is true or false, and {next(iter(e.check))} needs a number: "
