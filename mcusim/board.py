@@ -547,8 +547,8 @@ def build(profile: dict, where: str, part_overrides: dict, with_firmware: bool, 
         family = getattr(cls, "CORE", None)
         if family is not None and not core.get("kind", "").startswith(
                 family if isinstance(family, str) else tuple(family)):
-            raise ConfigError(f"{where}: firmware {kind.name} runs on a core of the {family} family; this "
-                              f"board's [core] is {core.get('kind')!r}")
+            raise _located(profile, where, f"[firmware] kind = {kind.name!r} runs on a core of the {family} "
+                           f"family; this board's [core] is {core.get('kind')!r}", "firmware", None, "kind")
         params = {k: v for k, v in fw.items() if k != "kind"}
         params.update(firmware_params)
         try:

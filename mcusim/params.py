@@ -76,14 +76,14 @@ def coerce(value, kind, what: str):
     if kind is bool:
         if isinstance(value, bool):
             return value
-        if isinstance(value, (int, float)) and value in (0, 1):
-            return bool(value)      # 0 and 1 as numbers of any type, as their text reads
         text = str(value).strip().lower()
         if text in _TRUE:
             return True
         if text in _FALSE:
             return False
-        raise ConfigError(f"{what} = {_show(value)}: expected true or false")
+        # (a float shown as written: 0.0 is no switch position, while the whole number 0 is)
+        shown = repr(value) if isinstance(value, float) else _show(value)
+        raise ConfigError(f"{what} = {shown}: expected true or false")
     if kind in (int, float):
         want = "an integer" if kind is int else "a number"
         if isinstance(value, bool):

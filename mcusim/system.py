@@ -93,6 +93,11 @@ def split_system_overrides(profile: dict, overrides: dict, where: str, inputs=fr
     return members, present, parts, main_fw, topics
 
 
+def given_present(overrides) -> set:
+    """The members whose presence ``overrides`` (``--set``) sets: those win over the file's."""
+    return {k.rpartition(".")[0] for k in (overrides or {}) if k.endswith(".present")}
+
+
 def close_firmware_tasks(members: dict) -> None:
     """End the task coroutines of every board's firmware (a simulation that will not run on)."""
     for ns in members.values():
@@ -105,8 +110,11 @@ def _build_member(m, prof, pwhere, user_sets, present, main_fw, with_firmware, k
     """One board of the system: its profile's ``set`` and the user's keys for it; without
     firmware (absent, or --no-firmware) firmware keys are mistakes."""
     name = m["name"]
-    sets = {**m.get("set", {}), **user_sets}
-    p_parts, p_fw, p_topics = split_overrides(prof, sets)
+    sets = {**{k: v for k, v in m.get("set", {}).items() if k != "present"}, **user_sets}
+    try:
+        p_parts, p_fw, p_topics = split_overrides(prof, sets)
+    except ConfigError as exc:
+        raise with_member(exc, name, user_sets) from None
     p_fw.update(main_fw)
     fw_on = with_firmware and present
     if not fw_on:
@@ -325,6 +333,17 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         clocks += board_clocks(prof)
     member_sets, present, part_params, main_fw, topics = split_system_overrides(
         profile, overrides, where, _firmware_inputs(member_profiles[main][0]))
+    for index, m in enumerate(specs):     # a member's own set may say present = false too
+        own = m.get("set", {})
+        if "present" in own and m["name"] not in given_present(overrides):
+            try:
+                present[m["name"]] = _truth(own["present"], f"{m['name']}.present")
+            except ConfigError as exc:
+                raise _located(profile, where, f"member {m['name']}: set: {str(exc).removeprefix('--set ')}",
+                               "member", index, "set", "present") from None
+            if m["name"] == main and not present[main]:
+                raise _located(profile, where, f"member {main}: set: present = false: {main} is the "
+                               "system's main board", "member", index, "set", "present")
     if not present[main]:
         raise ConfigError(f"--set {main}.present=false: {main} is the system's main board")
     kernel = Kernel(TimeBase(clocks), engine)
@@ -337,8 +356,12 @@ def build_system(profile: dict, where: str, overrides: dict, with_firmware: bool
         for target in ([targets] if isinstance(targets, str) else targets):
             member, _, rest = target.partition(".")
             part, _, term = rest.partition(".")
-            if member not in external or not part or not term:
-                raise ConfigError(f"{where}: [links] {source}: {target!r} is not member.part.TERMINAL")
+            if not part or not term:
+                raise _located(profile, where, f"[links] {source}: {target!r} is not member.part.TERMINAL",
+                               "links", None, source)
+            if member not in external:
+                raise _located(profile, where, f"[links] {source}: {target!r}: no board {member!r} in this "
+                               f"system (boards: {', '.join(external)})", "links", None, source)
             _check_link_target(profile, where, source, target, member_profiles[member][0], part, term)
             terms = external[member].setdefault(part, {})
             if term in terms:

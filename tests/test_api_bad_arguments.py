@@ -184,10 +184,12 @@ def test_the_scenario_api_names_a_wrong_argument(call, words):
         call()
 
 
-@pytest.mark.parametrize("value, want", [(0, False), (1, True), (0.0, False), (1.0, True), ("off", False)])
-def test_a_switch_takes_zero_and_one_as_numbers_of_any_type(value, want):
-    """/motor1/enable = 0.0 had been refused as '= 0: expected true or false' while 0 was taken."""
+@pytest.mark.parametrize("value, shown", [(0.0, "= 0.0:"), (1.0, "= 1.0:"), (0.5, "= 0.5:")])
+def test_a_switch_refuses_a_float_showing_it_as_given(value, shown):
+    """/motor1/enable = 0.0 had been refused as '= 0: expected true or false', a value the same
+    switch takes: a float is no switch position (a follow from a position to a switch is refused
+    by it), and the message now shows it as given."""
     from mcusim.params import Param
-    assert Param(True).check(value, "/motor1/enable") is want
-    with pytest.raises(ConfigError, match="expected true or false"):
-        Param(True).check(0.5, "/motor1/enable")
+    assert Param(True).check(0, "/motor1/enable") is False and Param(True).check(1, "/motor1/enable") is True
+    with pytest.raises(ConfigError, match=f"/motor1/enable {shown} expected true or false"):
+        Param(True).check(value, "/motor1/enable")

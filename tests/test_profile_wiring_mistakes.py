@@ -316,3 +316,46 @@ def test_a_timers_default_vector_beyond_the_cores_is_refused(tmp_path, capsys):
     Path(path).write_text(text)
     msg = _one_error(capsys, ["run", path, "--duration", "1ms"])
     assert "TIMER0: vector 14 is not one of the core's 12 vectors" in msg     # Timer0's own default
+
+
+# --- found by a new user's review (session 23) ---------------------------------------------------------
+def test_a_link_to_a_board_the_system_lacks_names_the_board_at_the_links_line(tmp_path, capsys):
+    p = _edited(tmp_path, "elementall", '"mcm4.ibt2.L_EN"]', '"mcm9.ibt2.L_EN"]')
+    err = _one_error(capsys, ["run", p, "--duration", "1ms"])
+    assert f"b.toml:{_line_of(p, 'estop.ENABLE_OUT')}:" in err and "no board 'mcm9' in this system" in err, err
+
+
+def test_firmware_for_another_core_family_is_named_at_its_kind_line(tmp_path, capsys):
+    p = _edited(tmp_path, "nucleo-f746", 'kind = "controlmotor"', 'kind = "openrover-mcm"')
+    err = _one_error(capsys, ["run", p, "--duration", "1ms"])
+    assert f"b.toml:{_line_of(p, 'openrover-mcm')}:" in err and "avr family" in err, err
+
+
+@pytest.mark.parametrize("key, shown", [("mcm1.motor.", "--set mcm1.motor.:"),
+                                        ("mcm1.mcm2.motor.R", "--set mcm1.mcm2.motor.R:")])
+def test_a_members_key_mistake_is_shown_with_the_member_as_typed(capsys, key, shown):
+    """The member prefix had been stripped from the key the message showed (``--set motor.``)."""
+    err = _one_error(capsys, ["run", "elementall", "--duration", "1ms", "--set", f"{key}=1"])
+    assert shown in err, err
+
+
+def test_a_members_own_set_may_say_present_false_as_the_command_line_does(tmp_path, capsys):
+    """``set = { present = false }`` in a [[member]] had been taken as a firmware input and blamed
+    on a --set the user never gave; it now leaves the board unpowered, as --set mcm1.present=false
+    does, and the command line still wins."""
+    old = 'set = { "firmware.i2c_address" = 0x08 }'
+    p = _edited(tmp_path, "elementall", old, 'set = { "firmware.i2c_address" = 0x08, "present" = false }')
+    sim = mcusim.load(p)
+    try:
+        assert not sim.members["mcm1"]["present"] and sim.members["mcm2"]["present"]
+    finally:
+        sim.discard()
+    sim = mcusim.load(p, overrides={"mcm1.present": True})
+    try:
+        assert sim.members["mcm1"]["present"]
+    finally:
+        sim.discard()
+    bad = _edited(tmp_path, "elementall", old, 'set = { "firmware.i2c_address" = 0x08, "present" = "maybe" }',
+                  name="c.toml")
+    err = _one_error(capsys, ["run", bad, "--duration", "1ms"])
+    assert f"c.toml:{_line_of(bad, 'maybe')}:" in err and "expected true or false" in err, err
