@@ -14,7 +14,7 @@ import time
 
 from .engine import DEFAULT_ENGINE, ENGINES
 from .errors import ConfigError, TimeError
-from .params import fmt_duration
+from .params import fmt_duration_exact
 
 
 def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, firmware=True,
@@ -58,7 +58,7 @@ def bench(board: str, duration, repeat: int = 3, engine: str = DEFAULT_ENGINE, f
             sim.timebase.ticks(duration)     # exact, as the other commands' --duration
         except TimeError:
             sim.close()
-            raise ConfigError(f"--duration {fmt_duration(duration)}: not a whole number of base ticks "
+            raise ConfigError(f"--duration {fmt_duration_exact(duration)}: not a whole number of base ticks "
                               f"(1/{sim.timebase.base_hz} s); try 1s or 100ms") from None
         t0 = time.perf_counter()
         try:

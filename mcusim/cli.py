@@ -13,14 +13,15 @@ import gc
 import io
 import json
 import os
+import re
 import signal
 import sys
 from fractions import Fraction
 from pathlib import Path
 
 from .cli_args import _parser
-from .errors import ConfigError, McusimError, TimeError
-from .params import fmt_duration
+from .errors import ConfigError, McusimError, TimeError, read_input
+from .params import fmt_duration, fmt_duration_exact
 
 
 def _firmware(args):
@@ -250,7 +251,7 @@ def cmd_run(args) -> int:
                         if near > 0 and (near * hz).denominator == 1:
                             hint = f"the nearest whole {name} is {fmt_duration(near)}"
                             break
-                raise ConfigError(f"{opt} {fmt_duration(value)}: not a whole number of base ticks "
+                raise ConfigError(f"{opt} {fmt_duration_exact(value)}: not a whole number of base ticks "
                                   f"(1/{hz} s); {hint}") from None
         gdb = None
         if args.gdb is not None:
@@ -430,12 +431,14 @@ def cmd_bench(args) -> int:
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"mcusim: warning: {message}", file=sys.stderr)
+    print(f"mcusim: warning: {_short(message)}", file=sys.stderr)
 
 
 def _short(exc, limit: int = 600) -> str:
     """An error message on one line of reasonable length (a 5000-character key is cut)."""
     text = " ".join(str(exc).split("\n"))
+    if len(text) > limit:       # a huge key or value first, so that the list after it stays readable
+        text = re.sub(r"\S{256,}", lambda m: m.group()[:60] + "...", text)   # (a file path stays whole)
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
@@ -503,7 +506,11 @@ def main(argv=None) -> int:
             if args.show is not None:
                 if args.kinds:
                     raise ConfigError("boards: give --show BOARD or --kinds, not both")
-                sys.stdout.write(shipped_text(args.show))
+                if args.show.endswith(".toml") and args.show not in board_names():
+                    read_profile(args.show)         # a path, as wherever a board is named: checked
+                    sys.stdout.write(read_input(args.show, "board", 4 << 20).decode("utf-8"))
+                else:
+                    sys.stdout.write(shipped_text(args.show))
                 return 0
             if args.kinds:
                 from .kinds import reference

@@ -45,6 +45,9 @@ def mavlink_port(sim) -> tuple:
     the system member running it, None for a single board); ConfigError when there is none."""
     fw = sim.firmware
     uart = getattr(fw, "MAVLINK_UART", None)
+    if fw is None:
+        raise ConfigError(f"{sim.board_name} runs without firmware (--no-firmware): a MAVLink link needs "
+                          "the rover controller's firmware")
     if uart is None:
         raise ConfigError(f"{sim.board_name} runs no firmware with a MAVLink link (the rover controller "
                           "has one: elementall, ciaa-edu)")

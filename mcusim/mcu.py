@@ -5,6 +5,7 @@ from __future__ import annotations
 import numbers
 
 from .errors import ConfigError, McusimError
+from .params import a_or_an
 from .signals import Net
 
 
@@ -70,5 +71,5 @@ def _address(a) -> int:
 def _value(v, size: int) -> int:
     if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 0 <= v < 1 << (8 * size):
         raise McusimError(f"bus value {v!r:.40}: expected an int in 0 .. {(1 << (8 * size)) - 1:#x} "
-                          f"for a {8 * size}-bit write")
+                          f"for {a_or_an(f'{8 * size}-bit')} write")
     return int(v)

@@ -278,6 +278,29 @@ def fmt_duration(t) -> str:
     return f"{t}s"   # not reached
 
 
+def a_or_an(word: str) -> str:
+    """``word`` with its indefinite article, as it is read: "an estop", "an 8-bit", "a uart"."""
+    first = str(word)[:1].lower()
+    return f"{'an' if first in 'aeio8' or str(word)[:2] in ('11', '18') else 'a'} {word}"
+
+
+def fmt_duration_exact(t) -> str:
+    """:func:`fmt_duration`, with as many digits as it takes to tell ``t`` from its twelve-digit
+    rounding (``1.0000000000000000000000001ms``, which a message about ticks must not show as
+    ``1ms``); up to 40 digits."""
+    from decimal import Context, Decimal
+    from fractions import Fraction
+    t = Fraction(t)
+    shown = fmt_duration(t)
+    unit = shown.lstrip("+-0123456789.e").removeprefix("+") or "s"
+    scale = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9, "ps": 10**12}.get(unit)
+    if scale is None or Fraction(shown[:-len(unit)]) / scale == t:
+        return shown
+    v = t * scale
+    digits = Context(prec=40).divide(Decimal(v.numerator), Decimal(v.denominator))
+    return f"{digits.normalize():f}{unit}"
+
+
 def user_duration(value, what: str, *, positive: bool = True, maximum=None, max_hint: str = ""):
     """A duration as a user gives it (``"500ms"``, ``"2s"``; a unit is required) -> exact seconds
     (Fraction). Finite, positive (or not negative), at most ``maximum`` seconds if given;

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from dataclasses import field as dc_field
 
 from .errors import BusFault, UnsupportedConfiguration
+from .params import a_or_an
 
 ACCESS_KINDS = ("rw", "r", "w", "rc_w0", "rc_w1", "w1c", "rc_r")
 
@@ -316,7 +317,7 @@ class Bus:
 
     def write(self, address: int, value: int, size: int) -> None:
         if not 0 <= value < (1 << (8 * size)):
-            raise ValueError(f"value {value:#x} does not fit a {8 * size}-bit write")
+            raise ValueError(f"value {value:#x} does not fit {a_or_an(f'{8 * size}-bit')} write")
         fn = self._writers.get(8 * address + size)
         if fn is None:
             fn = self.writer(address, size)

@@ -414,3 +414,51 @@ def test_a_peripheral_placed_past_the_end_of_the_address_space_is_refused_at_its
     bad = tmp_path / "b.toml"
     bad.write_text(text.replace("base = 0x40000400", "base = 0xFFFFFFF0"))
     _usage_error(capsys, ["run", str(bad), "--duration", "1ms"], "TIM3 at 0xfffffff0", "past the end of the 4 GiB")
+
+
+def test_a_huge_key_is_cut_in_the_message_and_the_list_after_it_stays(tmp_path, capsys):
+    """A 100,000-character topic in a scenario: the message names it in 60 characters and keeps
+    the inputs the firmware takes; a long file path stays whole."""
+    sc = tmp_path / ("d" * 120) / "s.toml"
+    sc.parent.mkdir()
+    sc.write_text(f'[scenario]\nboard = "nucleo-f746"\nduration = "5ms"\n\n[[at]]\ntime = "1ms"\n'
+                  f'publish = {{ "/{"x" * 100_000}" = 1 }}\n')
+    err = _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(sc)], f"{sc}:7:", "/motor2/enable")
+    assert len(err) < 700 and "x" * 61 not in err
+
+
+@pytest.mark.parametrize("cmd", ["run", "bench"])
+def test_a_duration_off_the_tick_by_less_than_twelve_digits_show_is_shown_with_all_its_digits(capsys, cmd):
+    """'--duration 1ms: not a whole number of base ticks; the nearest is 1ms' contradicted itself."""
+    _usage_error(capsys, [cmd, "nucleo-f746", "--duration", "1.0000000000000000000000001ms"],
+                 "--duration 1.0000000000000000000000001ms: not a whole number of base ticks")
+
+
+def test_a_mavlink_link_without_firmware_says_no_firmware_is_the_reason(capsys):
+    _usage_error(capsys, ["run", "ciaa-edu", "--no-firmware", "--mavlink", "udpout:127.0.0.1:14550",
+                          "--duration", "1ms"], "runs without firmware (--no-firmware)")
+
+
+def test_boards_show_takes_a_toml_path_as_every_command_takes_a_board(tmp_path, capsys):
+    """docs/boards.md: a .toml path works wherever a board name does."""
+    text = mcusim.board.shipped_text("pro-mini")
+    p = tmp_path / "mine.toml"
+    p.write_text(text)
+    assert main(["boards", "--show", str(p)]) == 0
+    assert capsys.readouterr().out == text
+    p.write_text(text.replace("[firmware]", "[firmwear]"))
+    _usage_error(capsys, ["boards", "--show", str(p)], "mine.toml")
+
+
+@pytest.mark.parametrize("word, want", [("estop", "an estop"), ("8-bit", "an 8-bit"), ("16-bit", "a 16-bit"),
+                                        ("motor", "a motor"), ("18-bit", "an 18-bit"), ("1-bit", "a 1-bit")])
+def test_messages_put_the_article_a_reader_says(word, want):
+    from mcusim.params import a_or_an
+    assert a_or_an(word) == want
+
+
+def test_a_scenario_value_of_the_wrong_type_is_shown_as_toml_writes_it(tmp_path, capsys):
+    sc = tmp_path / "f.toml"
+    sc.write_text('[scenario]\nboard = "nucleo-f746"\nduration = "5ms"\n\n[[at]]\ntime = "1ms"\n'
+                  'fault = { encoder = "encoder1", kind = "missing_edges", count = true }\n')
+    _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(sc)], "fault.count = true: expected a whole number")

@@ -9,7 +9,7 @@ import math
 import sys
 
 from ..errors import ConfigError, McusimError, TimeError
-from ..params import fmt_duration, user_duration
+from ..params import _show, a_or_an, fmt_duration, user_duration
 
 # part kinds a key may name: the methods a part of that kind has
 PART_KINDS = {
@@ -70,7 +70,8 @@ class Checker:
         if not ok(value):
             want = {"str": "a non-empty string", "number": "a number", "int": "a whole number",
                     "bool": "true or false"}[typ]
-            raise self._err(line, f"{where} = {value!r}: expected {want}")
+            shown = str(value).lower() if isinstance(value, bool) else _show(value)   # as TOML writes it
+            raise self._err(line, f"{where} = {shown}: expected {want}")
         return value
 
     def _fields(self, table, index, key: tuple, spec, fields: dict) -> dict:
@@ -102,7 +103,7 @@ class Checker:
                             f"(parts: {', '.join(sim.parts)})")
         if not all(hasattr(part, m) for m in PART_KINDS[kind]):
             fit = [n for n, p in sim.parts.items() if all(hasattr(p, m) for m in PART_KINDS[kind])]
-            raise self._err(line, f"{where}: part {name!r} is not a {kind} "
+            raise self._err(line, f"{where}: part {name!r} is not {a_or_an(kind)} "
                             f"({kind} parts: {', '.join(fit) or 'none'})")
         return part
 
