@@ -215,6 +215,22 @@ def test_arming_that_cannot_be_carried_out_is_failed_and_bad_param1_is_denied():
     assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_DENIED
 
 
+def test_arming_while_the_controller_boots_is_temporarily_rejected_as_waiting_clears_it():
+    """MAV_RESULT_TEMPORARILY_REJECTED: 'the command is valid, but cannot be executed at this time
+    ... retry later'. During the first ~0.11 s the controller identifies its modules (HEARTBEAT
+    BOOT); an arm then had been FAILED, which a ground station takes as final, though the same
+    command 0.2 s later is accepted."""
+    assert "retry" in _result_meaning(ml.MAV_RESULT_TEMPORARILY_REJECTED).lower()
+    sim, gcs = rover()
+    sim.run(seconds="0.02s")
+    assert gcs.recv_match("HEARTBEAT", timeout="0.01s").system_status == ml.MAV_STATE_BOOT
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_TEMPORARILY_REJECTED
+    sim.run(seconds="0.2s")
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_ACCEPTED
+
+
 @pytest.mark.parametrize("command", [ARM_DISARM, ml.MAV_CMD_SET_MESSAGE_INTERVAL, ml.MAV_CMD_REQUEST_MESSAGE,
                                      ml.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES])
 def test_a_command_long_only_command_sent_as_command_int_says_so(command):
@@ -327,6 +343,35 @@ def test_battery_status_bank_voltage_is_the_batterys_terminal_voltage_within_one
     step = 3.3 / 1024 / sim.part("vbat_divider").ratio
     assert abs(status.voltages[0] / 1000 - sim.part("battery").voltage()) <= step + 0.0005
     assert status.voltages[1:] == [65535] * 9
+
+
+def test_battery_status_before_the_first_reading_has_no_charge_state():
+    """MAV_BATTERY_CHARGE_STATE_UNDEFINED (0): 'Low battery state is not provided'. The message the
+    controller sends before its battery monitor's first reading has the voltage unknown
+    (UINT16_MAX) and had claimed OK (1) all the same."""
+    assert "not provided" in ml.enums["MAV_BATTERY_CHARGE_STATE"][0].description
+    sim = mcusim.load("ciaa-edu")
+    gcs = MavlinkClient(sim, "USART3")
+    sim.run(seconds="0.01s")
+    first = gcs.recv_match("BATTERY_STATUS", timeout="0.1s")
+    assert (first.voltages[0], first.charge_state) == (65535, 0)
+    sim.run(seconds="1.1s")
+    later = gcs.messages("BATTERY_STATUS")[-1]
+    assert later.voltages[0] != 65535 and later.charge_state == 1
+
+
+def test_arming_with_a_module_fault_is_failed_as_the_heartbeat_says_critical():
+    """A module's driver over temperature: HEARTBEAT CRITICAL, the motor health bit cleared, and
+    an arm had been ACCEPTED all the same."""
+    sim, gcs = rover()
+    sim.run(seconds="0.25s")
+    sim.part("mcm2.ibt2").overtemperature()
+    sim.run(seconds="0.3s")
+    assert sim.firmware.faults, sim.firmware.faults
+    gcs.flush()
+    assert gcs.recv_match("HEARTBEAT", timeout="1.1s").system_status == ml.MAV_STATE_CRITICAL
+    gcs.mav.command_long_send(1, 0, ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert gcs.recv_match("COMMAND_ACK", timeout="0.1s").result == ml.MAV_RESULT_FAILED
 
 
 def test_manual_control_r_positive_turns_clockwise_and_x_positive_drives_forward():

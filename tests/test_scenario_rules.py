@@ -246,3 +246,38 @@ def test_text_and_a_number_are_still_checked_with_the_checks_made_for_them(tmp_p
         equals = 0
         """)
     assert rc == 0, capsys.readouterr()
+
+
+def test_the_mavlink_link_summary_can_be_checked_though_the_link_is_made_at_the_firmwares_first_step(
+        tmp_path, capsys):
+    """docs/mavlink.md documents firmware.mavlink in the summary; the check before the run had
+    refused it ('summary has no firmware.mavlink'), as the link is made in board_init."""
+    rc = run(tmp_path, """
+        [scenario]
+        board = "ciaa-edu"
+        duration = "50ms"
+
+        [[expect]]
+        summary = "firmware.mavlink.rx_errors"
+        equals = 0
+
+        [[expect]]
+        summary = "firmware.mavlink.armed"
+        equals = false
+        """)
+    assert rc == 0, capsys.readouterr()
+
+
+def test_the_rover_controllers_summary_has_the_same_keys_before_and_after_its_first_step():
+    """The load-time check of a summary path reads the summary before the run: its shape must be
+    the run's (a key that appears at the first step would be refused, as firmware.mavlink was)."""
+    sim = mcusim.load("ciaa-edu")
+    try:
+        def keys(d, prefix=""):
+            return {prefix + k for k in d} | {x for k, v in d.items() if isinstance(v, dict)
+                                              for x in keys(v, prefix + k + ".")}
+        before = keys(sim.summary()["firmware"])
+        sim.run(seconds="0.01s")
+        assert keys(sim.summary()["firmware"]) == before
+    finally:
+        sim.close()

@@ -532,4 +532,5 @@ class RoverControl:
                 "battery_measured_v": self.battery_v, "battery_state": self.battery_state,
                 "estop_latched": self.estop_latched, "watchdog_tripped": self.watchdog_tripped,
                 "faults": sorted(self.faults), "i2c_errors": self.i2c_errors,
-                **({"mavlink": self.link.summary()} if self.link is not None else {})}
+                # (the link is made at the first step, board_init: before it, its summary as made)
+                "mavlink": self.link.summary() if self.link is not None else dict(MavlinkLink.BEFORE)}

@@ -249,7 +249,8 @@ class MavlinkLink(ParamProtocol):
                 mv, -1, -1, 0, min(0xFFFF, self.rx_errors), 0, 0, 0, 0, 0, 0, 0))
         elif mid == 147:
             mv = 0xFFFF if rc.battery_v is None else min(0xFFFE, round(rc.battery_v * 1000))
-            charge = {"normal": 1, "low": 2, "critical": 3}[rc.battery_state]
+            # MAV_BATTERY_CHARGE_STATE_UNDEFINED (0) until the monitor's first reading: OK would claim one
+            charge = 0 if rc.battery_v is None else {"normal": 1, "low": 2, "critical": 3}[rc.battery_state]
             self.send(ml.MAVLink_battery_status_message(
                 0, 2, 0, 0x7FFF, [mv] + [0xFFFF] * 9, -1, -1, -1, -1, 0, charge, [0, 0, 0, 0], 0, 0))
         elif mid == 32:
@@ -363,8 +364,12 @@ class MavlinkLink(ParamProtocol):
                 return RESULT_DENIED
             if rc.estop_pressed or self.gcs_silent(rc.rtos.tick_count):   # until it heartbeats again
                 return RESULT_TEMP_REJECTED
-            if rc.battery_state == "critical" or not rc.motors_enabled:
-                return RESULT_FAILED      # a valid command that cannot be carried out (not DENIED: bad params)
+            if rc.battery_state == "critical" or rc.faults or (rc.missing and not rc.motors_enabled):
+                # a valid command that cannot be carried out (not DENIED: bad params): what the
+                # HEARTBEAT shows as CRITICAL (a critical battery, a module fault, a module missing)
+                return RESULT_FAILED
+            if not rc.motors_enabled:
+                return RESULT_TEMP_REJECTED     # booting (its modules not identified yet): waiting clears it
             if not self.armed:
                 self.armed, self._cmd_key = True, None
             return RESULT_ACCEPTED
@@ -428,6 +433,10 @@ class MavlinkLink(ParamProtocol):
                                                         m.mission_type))
 
     # --- parameters ------------------------------------------------------------------------------------
+    #: the summary before the link is made (board_init, at the firmware's first step): nothing yet
+    BEFORE = {"armed": False, "rx_frames": 0, "rx_errors": 0, "tx_frames": 0, "tx_skipped": 0, "ignored": 0,
+              "gcs_lost": False}
+
     def summary(self) -> dict:
         return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
                 "tx_frames": self.tx_frames, "tx_skipped": self.tx_skipped, "ignored": self.ignored,
