@@ -34,6 +34,7 @@ Cycle costs (declared, ``firmware.cycles_mavlink_*``): one wake-up, each receive
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 from mcusim.fw.openrover_rcm.mavlink_params import ParamProtocol
 
@@ -432,10 +433,10 @@ class MavlinkLink(ParamProtocol):
         self.send(self.ml.MAVLink_mission_count_message(m.get_srcSystem(), m.get_srcComponent(), 0,
                                                         m.mission_type))
 
-    # --- parameters ------------------------------------------------------------------------------------
+    # --- summary ---------------------------------------------------------------------------------------
     #: the summary before the link is made (board_init, at the firmware's first step): nothing yet
-    BEFORE = {"armed": False, "rx_frames": 0, "rx_errors": 0, "tx_frames": 0, "tx_skipped": 0, "ignored": 0,
-              "gcs_lost": False}
+    BEFORE: ClassVar[dict] = {"armed": False, "rx_frames": 0, "rx_errors": 0, "tx_frames": 0, "tx_skipped": 0,
+                              "ignored": 0, "gcs_lost": False}
 
     def summary(self) -> dict:
         return {"armed": self.armed, "rx_frames": self.rx_frames, "rx_errors": self.rx_errors,
