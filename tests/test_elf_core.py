@@ -179,6 +179,19 @@ def test_topic_map_mistakes_are_named():
         sim.publish("/set_point", "fast")
 
 
+@pytest.mark.parametrize("value, ok", [(1e40, False), (-1e39, False), (10 ** 400, False),
+                                       (3.4028234663852886e38, True), (3.4028235e38, True), (-1e38, True)])
+def test_an_f32_topic_takes_what_rounds_to_a_finite_float32_and_refuses_the_rest(value, ok):
+    """An f32 topic beyond float32 (1e40) was an internal OverflowError from the packing; a value
+    rounding to FLT_MAX (3.4028235e38, as C's printf writes it) is fine."""
+    sim = load("ticks")
+    if ok:
+        sim.publish("/set_point", value)
+    else:
+        with pytest.raises(ConfigError, match="(out of range for f32|expected a finite number)"):
+            sim.publish("/set_point", value)
+
+
 # --- the exception model ----------------------------------------------------------------------------
 def test_nesting_by_priority_and_tail_chaining():
     sim = load("exc")

@@ -153,22 +153,44 @@ def test_a_packet_whose_fields_do_not_parse_gets_an_error_reply_and_the_session_
     assert len(out["after"]) == 8 and not out["after"].startswith("E")
 
 
-def test_watchpoints_on_ram_and_on_a_peripheral_register():
+def _is_str_immediate_t1(halfword: int) -> bool:
+    """Armv7-M STR (immediate), encoding T1: 0b01100 imm5 Rn Rt."""
+    return halfword >> 11 == 0b01100
+
+
+def test_watchpoints_on_ram_and_on_a_peripheral_register_stop_at_the_accessing_instruction():
+    """gdb takes an ARM watchpoint as firing before the access completes (its arm target's
+    'non-steppable' watchpoints): it steps the reported instruction itself, then shows the stop.
+    So the stub stops with the accessing instruction not retired and PC at it; a stop after it had
+    made gdb step once more and show the next instruction (outside the handler after its last
+    store). Continuing without removing the watchpoint runs that instruction and goes on."""
     def script(c, syms, out):
         c.ask(f"Z2,{syms['ticks']:x},4")
-        out["ram"] = c.ask("c")
+        out["ram"] = [c.ask("c") for _ in range(2)][-1]          # (the first: start-up's .bss clear)
         out["ram_pc"] = le32(c.ask("pf"))
+        out["again"] = c.ask("c")                                 # the next SysTick's store
+        out["again_pc"] = le32(c.ask("pf"))
         c.ask(f"z2,{syms['ticks']:x},4")
         c.ask("Z2,40000010,4")                                  # TIM2.SR written by its handler
         out["periph"] = c.ask("c")
         out["periph_pc"] = le32(c.ask("pf"))
+        out["sr_held"] = le32(c.ask("m40000010,4"))
+        out["step"] = c.ask("vCont;s:1")
+        out["step_pc"] = le32(c.ask("pf"))
         c.ask("z2,40000010,4")
         c.ask("D")
     sim, out = session(script)
     syms, image = sim.firmware.symbols, sim.firmware.image
+    half = lambda a: int.from_bytes(sim.firmware.core.read(a, 2), "little")   # noqa: E731
     assert out["ram"] == f"T05watch:{syms['ticks']:x};"
+    assert image.function(out["ram_pc"]) == "SysTick_Handler" and _is_str_immediate_t1(half(out["ram_pc"]))
+    assert out["again_pc"] == out["ram_pc"]
     assert out["periph"] == "T05watch:40000010;"
-    assert image.function(out["periph_pc"]) == "TIM2_IRQHandler"   # stopped after the store
+    assert image.function(out["periph_pc"]) == "TIM2_IRQHandler" and _is_str_immediate_t1(half(out["periph_pc"]))
+    # the store to SR was made once, at the watchpoint (UIF cleared), and the step retires it from
+    # its record: PC on to the next instruction, SR as the store left it
+    assert out["sr_held"] & 1 == 0
+    assert out["step"] == "T05" and out["step_pc"] == out["periph_pc"] + 2
 
 
 def test_ctrl_c_halts_a_running_target_and_kill_ends_the_run():

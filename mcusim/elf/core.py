@@ -132,11 +132,11 @@ class CortexMCore:
         self._check = False         # an interrupt was pended during an access
         self._stop = None           # why the emulation stopped early
         self._replay = []
+        self._held = None           # (pc, IPSR, accesses) of an instruction a watchpoint stopped
         self._acc_pc, self._acc, self._acc_key = None, [], None
         self._quantum = 0           # numbers the emu_start calls: an access record is per instruction
         self._wfi_at = None
         self.debug = None           # a gdb server: breakpoints, watchpoints, halts
-        self._debug_after = None
         self._replaying = False
         self.fault = None
         boot = boot_address if boot_address is not None else 0
@@ -295,7 +295,7 @@ class CortexMCore:
         self.cpu_time = t = t0 + retired * self.step_ticks
         self.kernel.now = t0
         stop, self._stop = self._stop, None
-        debug_stop, self._debug_after = self._debug_after, None
+        debug_stop = None
         if stop is not None:
             kind = stop[0]
             if kind == "fault":
@@ -328,6 +328,15 @@ class CortexMCore:
         self._quantum += 1
         self._wfi_at = None
         pc = uc.reg_read(A.UC_ARM_REG_PC)
+        held = self._held
+        if held is not None and held[1] == self._ipsr():
+            # (an exception taken at the resume runs first, and returns to the held instruction)
+            self._held = None
+            if held[0] == pc:           # not moved by the debugger: it retires as it began
+                done = self._replay_one(pc, t0, held[2])
+                if self._stop is not None or n == 1:
+                    return done
+                return done + self._emulate(t0 + self.step_ticks, n - 1, limit)
         if not self._thumb():                # a BX to an even address was a quantum's last instruction
             self._stop = ("fault", pc, faults.invstate(self, pc))
             self._in_emu = False
@@ -366,24 +375,37 @@ class CortexMCore:
         retired = self._retired_to(pc)
         if stop is None and (self._wfi_at == pc - 2 or (retired < n and self._halfword(pc - 2) == 0xBF30)):
             self._stop = ("wfi",)          # (the second test: a WFI in code the image copied to RAM)
-        if stop is not None and stop[0] == "replay":
-            # the instruction was abandoned after its access: finish it alone, answering its
-            # peripheral accesses from the record (no second side effect)
+        if stop is not None and stop[0] == "watch":
+            # a debugger's watchpoint on a peripheral register: the stop comes before the
+            # instruction retires, as gdb takes an ARM watchpoint (it steps the instruction
+            # itself); the accesses it made are held, answered from the record when it runs again
+            self._held = (pc, self._ipsr(), list(stop[1]))
+            self._stop = ("debug", stop[2])
+        elif stop is not None and stop[0] == "replay":
             self._stop = None
-            self._replay = list(stop[1])
-            self._in_emu = self._replaying = True
-            self._q_t0 = t0 + retired * self.step_ticks
-            self._q_base, self._blk_addr, self._blk_n, self._blk_size = 0, None, 0, 0
-            self._quantum += 1
-            try:
-                uc.emu_start(pc | 1, NO_UNTIL, count=1)
-            except UcError as exc:
-                self._stop = ("fault", pc, faults.uc_error_text(exc))
-            finally:
-                self._in_emu = self._replaying = False
-                self._replay = []
-            retired += 1
+            retired += self._replay_one(pc, t0 + retired * self.step_ticks, stop[1])
         return retired
+
+    def _replay_one(self, pc: int, t: int, record) -> int:
+        """Finish alone the instruction at ``pc``, abandoned after its accesses ``record``, answering
+        its peripheral accesses from the record (no second side effect): 1, the instruction retired."""
+        uc = self.uc
+        self._replay = list(record)
+        self._in_emu = self._replaying = True
+        self._q_t0 = t
+        self._q_base, self._blk_addr, self._blk_n, self._blk_size = 0, None, 0, 0
+        self._quantum += 1
+        try:
+            uc.emu_start(pc | 1, NO_UNTIL, count=1)
+        except UcError as exc:
+            self._stop = ("fault", pc, faults.uc_error_text(exc))
+        finally:
+            self._in_emu = self._replaying = False
+            self._replay = []
+        return 1
+
+    def _ipsr(self) -> int:
+        return self.uc.reg_read(A.UC_ARM_REG_XPSR) & 0x1FF
 
     def _thumb(self) -> bool:
         return bool(self.uc.reg_read(A.UC_ARM_REG_XPSR) >> 24 & 1)
@@ -526,9 +548,8 @@ class CortexMCore:
         self._acc.append((address, size, result))
         if self.debug is not None and self.debug.watchpoints and not self._replaying:
             hit = self.debug.watch_hit(address, size, value is not None)
-            if hit is not None:
-                self._stop = ("replay", list(self._acc))
-                self._debug_after = hit
+            if hit is not None and not (pc == self.debug._skip_bp and index == 0):
+                self._stop = ("watch", list(self._acc), hit)
                 uc.emu_stop()
                 return result
         if self._replaying:

@@ -22,7 +22,7 @@ from pathlib import Path
 from unicorn import UC_HOOK_CODE
 
 from ..errors import ConfigError
-from ..params import shortest_f32
+from ..params import _show, shortest_f32
 from ..schema import parse_toml
 
 TYPES = {"bool": "<?", "u8": "<B", "i8": "<b", "u16": "<H", "i16": "<h", "u32": "<I", "i32": "<i",
@@ -150,9 +150,20 @@ class ElfFirmware:
                 raise ConfigError(f"{name} = {value!r}: expected true or false")
             return bool(value)
         if t.type.startswith("f"):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError(f"{name} = {value!r}: expected a finite number")
-            return float(value)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"{name} = {_show(value)}: expected a finite number")
+            try:
+                v = float(value)
+            except OverflowError:       # an integer beyond any float
+                v = math.inf
+            if not math.isfinite(v):
+                raise ConfigError(f"{name} = {_show(value)}: expected a finite number")
+            try:
+                struct.pack(t.fmt, v)
+            except OverflowError:       # beyond float32 (rounding to its largest finite value is fine)
+                raise ConfigError(f"{name} = {_show(value)}: out of range for {t.type} (largest magnitude "
+                                  "3.4028235e+38)") from None
+            return v
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f"{name} = {value!r}: expected an integer ({t.type})")
         bits = 8 * t.size

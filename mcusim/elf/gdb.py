@@ -12,7 +12,7 @@ runs. What it offers:
 * memory: flash and RAM directly; a peripheral address goes through the register models, with
   their side effects, as on a real probe (reading a clear-on-read flag clears it);
 * breakpoints (``Z0``/``Z1``) and watchpoints on RAM and peripherals (``Z2`` write, ``Z3`` read,
-  ``Z4`` access), reported after the accessing instruction;
+  ``Z4`` access), reported at the accessing instruction before it retires (gdb steps it);
 * ``stepi``, ``continue``, Ctrl-C (polled once per simulated millisecond and at each quantum),
   ``detach`` (the run goes on without the debugger), ``kill`` (the run ends with an error).
 """
@@ -24,6 +24,7 @@ import select
 import socket
 import sys
 
+from unicorn import arm_const as A
 from unicorn.unicorn_const import UC_HOOK_CODE, UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE
 
 from ..errors import BusFault, ConfigError, McusimError
@@ -208,10 +209,16 @@ class GdbServer:
     def _on_watch(self, kind):
         def hook(uc, access, address, size, value, _):
             core = self.core
-            if core._in_emu and core._stop is None and not core._replaying:
-                core._stop = ("replay", [])
-                core._debug_after = f"T{SIGTRAP:02x}{kind}:{address:x};"
-                uc.emu_stop()
+            if not core._in_emu or core._stop is not None or core._replaying:
+                return
+            pc = uc.reg_read(A.UC_ARM_REG_PC)
+            if pc == self._skip_bp and core._retired_to(pc) == 0:
+                return                  # resuming from this watchpoint's stop: its instruction runs
+            # gdb takes an ARM watchpoint as firing before the access completes and steps the
+            # instruction itself: the stop comes with it not retired, PC at it, as at a breakpoint
+            # (a RAM access is made again when it runs: the same value, no side effect)
+            core._stop = ("debug", f"T{SIGTRAP:02x}{kind}:{address:x};")
+            uc.emu_stop()
         return hook
 
     def watch_hit(self, address: int, size: int, write: bool):
