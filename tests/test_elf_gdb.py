@@ -181,7 +181,7 @@ def test_watchpoints_on_ram_and_on_a_peripheral_register_stop_at_the_accessing_i
         c.ask("D")
     sim, out = session(script)
     syms, image = sim.firmware.symbols, sim.firmware.image
-    half = lambda a: int.from_bytes(sim.firmware.core.read(a, 2), "little")   # noqa: E731
+    half = lambda a: int.from_bytes(sim.firmware.core.read(a, 2), "little")
     assert out["ram"] == f"T05watch:{syms['ticks']:x};"
     assert image.function(out["ram_pc"]) == "SysTick_Handler" and _is_str_immediate_t1(half(out["ram_pc"]))
     assert out["again_pc"] == out["ram_pc"]
