@@ -39,7 +39,7 @@ class UnsupportedConfiguration(McusimError):
     """
 
     def __init__(self, periph: str, register: str, field: str | None, value: int, why: str = "is not modelled"):
-        self.periph, self.register, self.field, self.value = periph, register, field, value
+        self.periph, self.register, self.field, self.value, self.why = periph, register, field, value, why
         where = f"{periph}.{register}" + (f".{field}" if field else "")
         super().__init__(f"{where} = {value:#x} {why}")
 

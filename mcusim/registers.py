@@ -174,7 +174,8 @@ class Peripheral:
         for f in reg.unmodelled:
             v = f.get(new)
             if v != f.get(reg.reset):
-                raise UnsupportedConfiguration(self.name, name, f.name, v)
+                raise UnsupportedConfiguration(self.name, name, f.name, v,
+                                               f"is not modelled ({f.doc})" if f.doc else "is not modelled")
         values[name] = new
         if reg.on_write:
             try:

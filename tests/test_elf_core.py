@@ -490,3 +490,20 @@ def test_a_shipped_image_runs_by_name_from_any_directory(tmp_path, monkeypatch, 
     assert main(["run", "nucleo-f746", "--firmware", "controlmotr", "--duration", "10ms"]) == 2
     err = capsys.readouterr().err
     assert "no shipped image of that name" in err and "controlmotor, controlmotor_thesis" in err
+
+
+def test_a_function_is_named_by_its_strong_symbol_not_a_weak_alias_of_it():
+    """Start-up code aliases every unused handler to Default_Handler with weak symbols: a stop in
+    it had been named after one of them (UsageFault_Handler for an SVC with no handler), which
+    suggests another exception."""
+    from elftools.elf.elffile import ELFFile
+
+    from mcusim.elf.image import read_elf
+    path = BIN / "corefaults.elf"
+    image = read_elf(str(path))
+    with open(path, "rb") as f:
+        table = ELFFile(f).get_section_by_name(".symtab")
+        at = {s.name: (s["st_value"] & ~1, s["st_info"]["bind"]) for s in table.iter_symbols() if s.name}
+    start, bind = at["Default_Handler"]
+    assert bind == "STB_GLOBAL" and [n for n, (a, b) in at.items() if a == start and b == "STB_WEAK"]
+    assert image.function(start) == "Default_Handler" and image.where(start) == "Default_Handler"

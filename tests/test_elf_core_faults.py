@@ -6,6 +6,8 @@ A3.2.1 (unaligned accesses); Cortex-M7 TRM (unaligned accesses to Device memory 
 
 from __future__ import annotations
 
+import sys
+
 import pytest
 from elf_build import BIN
 
@@ -115,3 +117,59 @@ def test_an_unmapped_access_says_what_the_default_memory_map_has_there(address, 
     from mcusim.elf.faults import unmapped_hint
     got = unmapped_hint(address, kind)
     assert (hint in got and got) if hint else got == ""
+
+
+# --- fault traps the core cannot honour: refused where the image sets them, not a fault of it -----------
+@pytest.mark.parametrize("value, field", [(0x210, "DIV_0_TRP"), (0x208, "UNALIGN_TRP")])
+def test_setting_a_fault_trap_stops_the_run_naming_the_bit_and_the_writer_not_as_a_hardfault(value, field):
+    """SCB.CCR DIV_0_TRP and UNALIGN_TRP (Armv7-M B3.2.8) would make a division by zero or an
+    unaligned access a UsageFault; the core cannot trap either without a hook on every instruction,
+    so the write is refused as an unsupported configuration naming the bit, its reason and the
+    instruction that wrote it. (It had been reported as a 'HardFault' of the image.)"""
+    from mcusim.errors import UnsupportedConfiguration
+    code = bytes.fromhex("0248" "0349" "0160" "7047" "00bf" "00bf") + (0xE000ED14).to_bytes(4, "little") \
+        + value.to_bytes(4, "little")   # ldr r0,=CCR; ldr r1,=value; str r1,[r0]; bx lr
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "corefaults.elf"), overrides={"/which": 1, "/target": 0x3001})
+    sim.firmware.core.write(0x3000, code)          # into the ITCM RAM, where code may run
+    with pytest.raises(UnsupportedConfiguration) as info:
+        sim.run(seconds="50us")
+    text = str(info.value)
+    assert f"SCB.CCR.{field} = 0x1 is not modelled (the core cannot trap" in text
+    assert "written at PC 0x00003004" in text and "HardFault" not in text
+
+
+# --- B3.2: the System Control Space is for privileged software -------------------------------------------
+def test_an_unprivileged_read_of_the_system_control_space_is_a_bus_fault():
+    """Armv7-M B3.2: 'unprivileged access to the SCS ... causes a BusFault'. Thread mode after
+    CONTROL.nPRIV = 1 read SCB->CPUID (and wrote SysTick) as if privileged."""
+    code = bytes.fromhex("0120" "80f31488" "bff36f8f" "0149" "0a68" "7047") + (0xE000ED00).to_bytes(4, "little")
+    # movs r0,#1; msr CONTROL,r0; isb; ldr r1,=SCB->CPUID; ldr r2,[r1]; bx lr
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "corefaults.elf"), overrides={"/which": 1, "/target": 0x3001})
+    sim.firmware.core.write(0x3000, code)
+    with pytest.raises(CoreFault) as info:
+        sim.run(seconds="50us")
+    text = str(info.value)
+    assert "unprivileged 32-bit read of 0xe000ed00, in the System Control Space" in text
+    assert "at PC 0x0000300c" in text
+
+
+def test_a_signal_raised_in_a_device_read_ends_the_run_without_a_stray_traceback(capfd):
+    """Ctrl-C or SIGTERM while the core reads a peripheral: the exception comes out of the run, and
+    Python prints no 'Exception ignored on converting result of ctypes callback function' (a read
+    callback must give ctypes a number; unicorn's own catch gave None)."""
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "armv7m.elf"), overrides={"/which": 10})
+    bus, calls = sim.firmware.core.bus, []     # (case 10: a loop reading TIM2.CNT)
+    read = bus.read
+
+    def interrupted(address, size):
+        calls.append(address)
+        raise KeyboardInterrupt
+    sim.run(seconds="1ms")
+    bus.read, unraisable = interrupted, []
+    hook, sys.unraisablehook = sys.unraisablehook, unraisable.append
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sim.run(seconds="5ms")
+    finally:
+        bus.read, sys.unraisablehook = read, hook
+    assert calls and not unraisable and "Exception ignored" not in capfd.readouterr().err

@@ -63,7 +63,7 @@ from unicorn.unicorn_const import (
     UC_PROT_READ,
 )
 
-from ..errors import ConfigError, McusimError
+from ..errors import ConfigError, McusimError, UnsupportedConfiguration
 from ..kernel import PRIO_CPU
 from . import faults, idle
 from .exceptions import ExceptionModel
@@ -75,6 +75,9 @@ MAX_QUANTUM = 1 << 20          # instructions per emu_start at most (the kernel 
 NO_UNTIL = 0xFFFFFFFF
 INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 
+
+#: the System Control Space (Armv7-M B3.2): SysTick, NVIC, SCB, the FPU's and debug registers
+SCS_BASE, SCS_END = 0xE000E000, 0xE000F000
 
 class CoreFault(McusimError):
     """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ...
@@ -133,6 +136,7 @@ class CortexMCore:
         self._stop = None           # why the emulation stopped early
         self._replay = []
         self._held = None           # (pc, IPSR, accesses) of an instruction a watchpoint stopped
+        self._interrupted = None    # an exception a signal raised in a device read, raised on return
         self._acc_pc, self._acc, self._acc_key = None, [], None
         self._quantum = 0           # numbers the emu_start calls: an access record is per instruction
         self._wfi_at = None
@@ -350,6 +354,7 @@ class CortexMCore:
             self._in_emu = False
             if self.debug is not None:
                 self.debug._skip_bp = None
+            self._raise_interrupt()
         pc = uc.reg_read(A.UC_ARM_REG_PC)
         stop = self._stop
         if err is None and stop == ("idle",):
@@ -402,7 +407,20 @@ class CortexMCore:
         finally:
             self._in_emu = self._replaying = False
             self._replay = []
+            self._raise_interrupt()
         return 1
+
+    def _raise_interrupt(self) -> None:
+        """Raise what a signal raised inside a device read (:meth:`_mmio_read`), now that the
+        emulator has returned."""
+        exc, self._interrupted = self._interrupted, None
+        if exc is not None:
+            raise exc
+
+    def _unprivileged(self) -> bool:
+        """Thread mode with CONTROL.nPRIV set."""
+        uc = self.uc
+        return bool(uc.reg_read(A.UC_ARM_REG_CONTROL) & 1) and not uc.reg_read(A.UC_ARM_REG_XPSR) & 0x1FF
 
     def _ipsr(self) -> int:
         return self.uc.reg_read(A.UC_ARM_REG_XPSR) & 0x1FF
@@ -417,10 +435,15 @@ class CortexMCore:
             return None
 
     def _fault(self, pc, what, t):
-        self.state = "fault"
-        self.fault = (pc, what)
         self.kernel.now = t                  # the simulation stands at the faulting instruction
         secs = t / self.kernel.timebase.base_hz
+        if isinstance(what, UnsupportedConfiguration):
+            self.state = "stopped"
+            self.fault = (pc, str(what))
+            raise UnsupportedConfiguration(what.periph, what.register, what.field, what.value,
+                                           f"{what.why}; written at PC {pc:#010x} ({self.where(pc)})")
+        self.state = "fault"
+        self.fault = (pc, what)
         raise CoreFault(f"HardFault at t = {float(secs):.9f} s: {what} at PC {pc:#010x} ({self.where(pc)})")
 
     # --- hooks -----------------------------------------------------------------------------
@@ -529,6 +552,15 @@ class CortexMCore:
             self._acc_pc, self._acc, self._acc_key = pc, [], key
         if self._stop is not None:
             return 0
+        if SCS_BASE <= address < SCS_END and self._unprivileged():
+            # Armv7-M B3.2: an unprivileged access to the System Control Space is a BusFault (but
+            # a write to STIR with CCR.USERSETMPEND set, which this model refuses to set)
+            what = "read of" if value is None else "write to"
+            why = (f"bus fault: unprivileged {8 * size}-bit {what} {address:#010x}, in the System Control "
+                   "Space (CONTROL.nPRIV = 1 in thread mode; Armv7-M B3.2)")
+            self._stop = ("fault", pc, why)
+            uc.emu_stop()
+            return 0
         k = self.kernel
         k.now = self._q_t0 + index * self.step_ticks
         try:
@@ -537,6 +569,12 @@ class CortexMCore:
             else:
                 self.bus.write(address, value, size)
                 result = 0
+        except UnsupportedConfiguration as exc:
+            # not a fault of the firmware: a configuration the simulator does not model, named
+            # as the Python ports' register writes name it (the run stops on it)
+            self._stop = ("fault", pc, exc)
+            uc.emu_stop()
+            return 0
         except McusimError as exc:
             self._stop = ("fault", pc, str(exc))
             uc.emu_stop()
@@ -563,7 +601,14 @@ class CortexMCore:
 
     def _mmio_read(self, uc, offset, size, base):
         # unicorn passes the offset within the mapped page
-        return self._mmio(uc, base + offset, size, None)
+        try:
+            return self._mmio(uc, base + offset, size, None)
+        except BaseException as exc:    # noqa: BLE001 (Ctrl-C, SIGTERM: raised after emu_start returns)
+            # a read callback must return a number to ctypes: unicorn's own catch would return
+            # None, and Python would print a stray 'Exception ignored' traceback
+            self._interrupted = exc
+            uc.emu_stop()
+            return 0
 
     def _mmio_write(self, uc, offset, size, value, base):
         self._mmio(uc, base + offset, size, value & ((1 << (8 * size)) - 1))

@@ -158,13 +158,19 @@ def read_elf(path) -> ElfImage:
                     image.symbols[sym.name] = addr
                     image.sizes[sym.name] = sym["st_size"]
                 if kind == "STT_FUNC":
-                    funcs.append((addr, addr + sym["st_size"], sym.name))
+                    funcs.append((addr, addr + sym["st_size"], sym["st_info"]["bind"] != "STB_WEAK", sym.name))
     except ConfigError:
         raise
     except (ELFError, ValueError, KeyError, IndexError, AssertionError) as exc:   # truncated or corrupt
         raise ConfigError(f"{where}: not a valid ELF file, truncated or corrupt ({len(raw)} bytes; the "
                           f"ELF reader says: {exc})") from None
-    funcs.sort()
-    image._funcs = funcs
-    image._starts = [f[0] for f in funcs]
+    # one name per function: at a start shared by weak aliases of a handler (startup code's
+    # UsageFault_Handler = Default_Handler, ...) the strong symbol names it, whatever the sort
+    best = {}
+    for start, end, strong, name in funcs:
+        key = (start, end)
+        if key not in best or (strong and not best[key][0]):
+            best[key] = (strong, name)
+    image._funcs = sorted((start, end, name) for (start, end), (_, name) in best.items())
+    image._starts = [f[0] for f in image._funcs]
     return image

@@ -48,7 +48,7 @@ class CoreScb(Peripheral):
             Field("VECTPENDING", 12, 9, access="r"), Field("ISRPENDING", 22, access="r"),
             Field("PENDSTCLR", 25, access="w"), Field("PENDSTSET", 26, access="w"),
             Field("PENDSVCLR", 27, access="w"), Field("PENDSVSET", 28, access="w"),
-            Field("NMIPENDSET", 31, modelled=False))),
+            Field("NMIPENDSET", 31, modelled=False, doc="no NMI source or NMI handling is modelled"))),
         Register("VTOR", 0x08, on_write="_write_vtor", fields=(Field("TBLOFF", 7, 25),)),
         Register("AIRCR", 0x0C, on_read="_read_aircr", on_write="_write_aircr", fields=(
             Field("VECTRESET", 0, modelled=False), Field("VECTCLRACTIVE", 1, modelled=False),
@@ -58,7 +58,10 @@ class CoreScb(Peripheral):
             Field("SLEEPONEXIT", 1), Field("SLEEPDEEP", 2), Field("SEVONPEND", 4))),
         Register("CCR", 0x14, reset=0x200, on_write="_write_ccr", fields=(
             Field("NONBASETHRDENA", 0, modelled=False), Field("USERSETMPEND", 1, modelled=False),
-            Field("UNALIGN_TRP", 3, modelled=False), Field("DIV_0_TRP", 4, modelled=False),
+            Field("UNALIGN_TRP", 3, modelled=False,
+                  doc="the core cannot trap unaligned accesses without a hook on every access"),
+            Field("DIV_0_TRP", 4, modelled=False,
+                  doc="the core cannot trap a division by zero: SDIV/UDIV give 0, as with DIV_0_TRP = 0"),
             Field("BFHFNMIGN", 8, modelled=False), Field("STKALIGN", 9), Field("DC", 16), Field("IC", 17),
             Field("BP", 18))),
         Register("SHPR1", 0x18, on_write="_write_shpr"),

@@ -54,7 +54,7 @@ class AvrUnmodelled(Peripheral):
 
     def __init__(self, name: str, free, mcu) -> None:
         regs = [Register(reg, addr, reset=reset, width=8,
-                         fields=(Field(reg, 0, 8, modelled=False, doc=f"{unit} is not modelled"),))
+                         fields=(Field(reg, 0, 8, modelled=False, doc=unit),))
                 for reg, addr, reset, unit in UNITS if addr in free]
         regs += [Register(reg, addr, width=8, reset=0x01 if reg == "MCUSR" else 0,
                           fields=MCUSR_FIELDS if reg == "MCUSR" else ())
