@@ -353,9 +353,10 @@ class Cpu:
         done, ctx.on_done = ctx.on_done, None
         done(ctx)
 
-    def _pause(self, ctx):
+    def _pause(self, ctx, at: int | None = None):
+        """``ctx`` stops being busy at tick ``at`` (now if None): what is left waits for its resume."""
         if ctx is not None and ctx.end_ev is not None:
-            ctx.remaining = ctx.end_ev.time - self.kernel.now
+            ctx.remaining = ctx.end_ev.time - (self.kernel.now if at is None else at)
             ctx.end_ev.cancel()
             ctx.end_ev = None
 
@@ -426,12 +427,16 @@ class Cpu:
         vec = self.vectors.get(irqn)
         if vec is None:
             raise McusimError(f"interrupt {irqn} is enabled and pending but the firmware has no handler for it")
-        self._pause(self._top())
+        kernel = self.kernel
+        # the core takes a request at its own clock edge: one raised between edges (by the I2C bus
+        # of a faster controller, by the plant) waits for the next, or the handler and the task it
+        # preempts would run off the CPU's clock grid for good
+        taken = self.clock.next_edge(kernel.now)
+        self._pause(self._top(), taken)
         nvic.acknowledge(irqn)
         ctx = IsrContext(irqn, nvic.context_priority(irqn), vec[0], vec[1])
         self.stack.append(ctx)
-        kernel = self.kernel
-        t = kernel.now + self.entry_latency * self.clock.period
+        t = taken + self.entry_latency * self.clock.period
         if last and self._inline_depth < self._MAX_INLINE and kernel.would_be_next(t, PRIO_CPU):
             # the entry event would be the next one: enter now, at its tick
             ctx.remaining = None
@@ -448,6 +453,7 @@ class Cpu:
 
     def _enter(self, ctx: IsrContext) -> None:
         irqn = ctx.irqn
+        self.nvic.entered(irqn)
         count = self.isr_count
         count[irqn] = count.get(irqn, 0) + 1
         period = self.clock.period

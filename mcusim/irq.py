@@ -89,6 +89,9 @@ class Nvic(Peripheral):
         self.pending.discard(irqn)
         self.active.add(irqn)
 
+    def entered(self, irqn: int) -> None:
+        """The handler's first instruction runs (entry done): nothing more changes on the NVIC."""
+
     def complete(self, irqn: int) -> None:
         self.active.discard(irqn)
         if self.lines.get(irqn, False):
@@ -201,8 +204,9 @@ class AvrInterrupts:
     A peripheral reports each source's condition (its flag AND its enable bit) with
     ``set_line(vector, level)``; the flag is a single bit, so an event that arrives while the flag is
     already set is lost, as on the chip. The lowest vector number wins. Entering a handler clears
-    the global I flag and calls the source's ``on_entry`` hook (which clears the flags the hardware
-    clears on vector entry, e.g. TOV1, OCF1A, INTF0, ADIF; TWINT is not cleared). RETI sets I.
+    the global I flag at once and, when the vector executes after the four-cycle response, calls
+    the source's ``on_entry`` hook (which clears the flags the hardware clears on vector entry,
+    e.g. TOV1, OCF1A, INTF0, ADIF; TWINT is not cleared). RETI sets I.
     Nesting happens only if a handler sets I itself (``sei()``).
     """
 
@@ -251,8 +255,14 @@ class AvrInterrupts:
         return _THREAD_PRIO  # priority never blocks nesting on AVR: only the I flag does
 
     def acknowledge(self, vector: int) -> None:
+        """The request is accepted: I is cleared at once (the response's four cycles push PC)."""
         self.i_flag = False
         self.active.add(vector)
+
+    def entered(self, vector: int) -> None:
+        """The vector executes, after the response: the flags the hardware clears "when executing
+        the corresponding interrupt handling vector" (TOV0, INTF0, ...) clear now, so one set again
+        during the response is the same request (an edge then is lost, as on the chip)."""
         hook = self.on_entry.get(vector)
         if hook is not None:
             hook()

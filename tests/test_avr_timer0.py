@@ -49,7 +49,8 @@ class Millis:
 
     def _line(self, vec, level):
         if vec == OVF and level:
-            self.rig.mcu.irq.acknowledge(OVF)   # vector entry clears TOV0
+            self.rig.mcu.irq.acknowledge(OVF)   # the response (I cleared), then
+            self.rig.mcu.irq.entered(OVF)       # the vector entry clears TOV0
             self.times.append(self.rig.kernel.now)
             m, f = self.millis + 1, self.fract + 3
             if f >= 125:

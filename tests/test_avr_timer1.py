@@ -107,7 +107,8 @@ def test_vector2_mode8_icr400_period_800_tov_at_bottom():
     rig.mode(8, cs=CS10)
     for _ in range(4):
         rig.run_clocks(800)
-        rig.mcu.irq.acknowledge(13)  # vector entry clears TOV1
+        rig.mcu.irq.acknowledge(13)  # the response (I cleared), then
+        rig.mcu.irq.entered(13)      # the vector entry clears TOV1
         rig.mcu.irq.complete(13)
     # TOV1 on the clock that leaves BOTTOM: clocks 1, 801, 1601, 2401
     assert [rig.cyc(t) for t in tov] == [1, 801, 1601, 2401]
@@ -334,7 +335,9 @@ def test_ocf1a_interrupt_line_and_clear_on_vector_entry():
     assert not rig.mcu.irq.lines.get(11)
     rig.run_clocks(1)
     assert rig.mcu.irq.lines[11] and rig.r(TIFR1) & OCFA
-    rig.mcu.irq.acknowledge(11)
+    rig.mcu.irq.acknowledge(11)         # the request accepted: OCF1A stays set through the response
+    assert rig.mcu.irq.lines[11] and rig.r(TIFR1) & OCFA
+    rig.mcu.irq.entered(11)             # "cleared when the interrupt handling vector is executed"
     assert not rig.mcu.irq.lines[11] and rig.r(TIFR1) & OCFA == 0
 
 

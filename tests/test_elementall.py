@@ -154,3 +154,26 @@ def test_a_two_wheel_differential_rover_declared_the_same_way_drives_an_arc():
     # chi = 1 on both sides: the odometry lags the true pose only by the sampling bound
     assert abs(s["odometry"]["yaw"] - s["pose"]["yaw"]) <= 0.4 * (CTRL + 0.0012) + 1e-3
     assert abs(s["odometry"]["x"] - s["pose"]["x"]) <= _lag_bound(0.2)
+
+
+@pytest.mark.parametrize("engine", ["fast", "reference"])
+def test_every_register_access_of_each_mcu_falls_on_its_own_clock_edge(tmp_path, engine):
+    """docs/design.md: every clock edge falls on a whole tick, and a CPU acts on its own edges. The
+    I2C bus, clocked by the 204 MHz controller, raised the modules' TWI requests between their
+    16 MHz edges; the handler, and the loop it preempted, then ran off the module's grid for good
+    (715 of 6,533 accesses of a 200 ms run). A request now waits for the core's next edge."""
+    import json
+    log = tmp_path / "r.jsonl"
+    sim = mcusim.load("elementall", engine=engine)
+    sim.trace_registers(log)
+    sim.run(seconds="0.13s")           # past the controller's module probes (TWI requests from 0.1 s)
+    sim.close()
+    period = {name: m["mcu"].cpu.clock.period for name, m in sim.members.items()}
+    hz = sim.kernel.timebase.base_hz
+    seen = set()
+    for line in log.read_text().splitlines():
+        rec = json.loads(line)
+        tick = round(rec["t_s"] * hz)
+        assert tick % period[rec["mcu"]] == 0, line
+        seen.add((rec["mcu"], rec["reg"].split(".")[0]))
+    assert ("mcm1", "TWI") in seen and ("rcm", "I2C0") in seen
