@@ -132,6 +132,10 @@ class MavlinkClient:
         :data:`mcusim.recent.KEEP` messages came after it) is passed over."""
         __tracebackhide__ = True
         start = self.sim.kernel.now
+        from .sim import unitless
+        if unitless(timeout):
+            raise ConfigError(f"recv_match(timeout={timeout!r:.40}): expected a number of seconds or a "
+                              "duration with a unit (\"500ms\"), as run() takes it")
         end = start + self.sim.timebase.ticks(timeout, rounding=True)
         found = []
 

@@ -54,8 +54,19 @@ def vcd_filename(nodeid: str, index: int = 1) -> str:
     """The VCD file name for the ``index``-th simulation of a test: the node id with ``::`` as
     ``__`` and anything but letters, digits, ``.``, ``_``, ``-`` as ``_``
     (``tests/test_fw.py::test_step[10]`` -> ``tests_test_fw.py__test_step_10.vcd``); the second
-    and later simulations of one test get ``-2``, ``-3``...; a very long id is shortened with a hash."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", nodeid.replace("::", "__")).strip("_.") or "test"
+    and later simulations of one test get ``-2``, ``-3``...; a very long id is shortened with a hash,
+    and so is one whose mapping loses what tells it from another (a space, ``+``, ``/`` or dots in
+    a parameter: ``test_a[a b]`` -> ``..._test_a_a_b-<6 hex>.vcd``)."""
+    raw = re.sub(r"[^A-Za-z0-9._-]+", "_", nodeid.replace("::", "__"))
+    stem = raw.strip("_.") or "test"
+    head, bracket, param = nodeid.partition("[")
+    # a mapping that loses what tells two ids apart (``[a b]`` and ``[a_b]``, ``[+1]`` and ``[1]``,
+    # ``[..]`` and ``[]``) gets a hash of the id, so that no test's trace overwrites another's
+    ident = param[:-1]
+    lossy = bool(re.search(r"[^A-Za-z0-9._/:-]", head) or stem != raw.rstrip("_") or (bracket and (
+        not param.endswith("]") or not ident or re.search(r"[^A-Za-z0-9._-]", ident) or ident.strip("._") != ident)))
+    if lossy and len(stem) <= _MAX_STEM:
+        stem = f"{stem}-{hashlib.sha1(nodeid.encode()).hexdigest()[:6]}"
     if len(stem) > _MAX_STEM:
         digest = hashlib.sha1(nodeid.encode()).hexdigest()[:10]
         stem = f"{stem[:_MAX_STEM - 11]}-{digest}"

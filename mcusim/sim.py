@@ -162,7 +162,25 @@ class Simulation:
 
     # --- pins, topics -------------------------------------------------------------------------------
     def pin(self, name: str):
+        """A pin of the board (``"PB1"``), in a system of any of its boards (``"mcm1.PB1"``; the
+        main board's without a prefix too)."""
+        head, dot, rest = name.partition(".") if isinstance(name, str) else ("", "", "")
+        if dot and len(self.members) > 1 and head in self.members:
+            return self.members[head]["mcu"].pin(rest)
         return self.mcu.pin(name)
+
+    def firmware_for(self, topic: str):
+        """(firmware, name) of a topic or input: ``"/motor1/set_pos"``, ``"velocity"``, or in a
+        system ``"<board>.<input>"`` (``"mcm2.velocity"``) for a member board's firmware, as
+        ``--set`` and scenarios name it."""
+        head, dot, rest = topic.partition(".") if isinstance(topic, str) else ("", "", "")
+        if dot and len(self.members) > 1 and head in self.members and self.members[head]["firmware"] \
+                is not self.firmware:
+            fw = self.members[head]["firmware"]
+            if fw is None:
+                raise ConfigError(f"{topic!r:.60}: board {head!r} runs no firmware (present = false?)")
+            return fw, rest
+        return self._fw(), topic
 
     def _fw(self):
         if self.firmware is None:
@@ -182,11 +200,20 @@ class Simulation:
                           "so it cannot run on (load the board again)")
 
     def publish(self, topic: str, value) -> None:
+        """A message or input for the firmware (in a system, ``"mcm2.velocity"`` for a board's own)."""
         self._going(f"publish({topic!r:.60})")
-        self._fw().publish(topic, value)
+        fw, name = self.firmware_for(topic)
+        try:
+            fw.publish(name, value)
+        except ConfigError as exc:
+            if name == topic:
+                raise
+            raise ConfigError(f"{topic.partition('.')[0]}: {exc}") from None
 
     def topic(self, name: str):
-        return self._fw().topic(name)
+        """The firmware's last value of a topic (in a system, ``"mcm2.velocity"`` for a board's own)."""
+        fw, rest = self.firmware_for(name)
+        return fw.topic(rest)
 
     def connect_serial(self, uart: str, endpoint="pty", member: str | None = None):
         """Connect a UART (``"USART2"``) to a host endpoint: ``"pty"`` (a pseudo terminal; its

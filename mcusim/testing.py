@@ -117,9 +117,17 @@ def _advance(sim, t_end: int, stop=None) -> None:
     sim.run(until_tick=t_end, stop=stop)
 
 
+def _check_sim(sim, what: str) -> None:
+    """McusimError where ``sim`` is no simulation (None, the fixture's factory, a board name)."""
+    if not hasattr(sim, "kernel") or not hasattr(sim, "run"):
+        raise McusimError(f"{what}(sim, ...): sim = {sim!r:.60} is not a simulation (mcusim.load(...), "
+                          "or what the mcusim_sim fixture returns when called)")
+
+
 def run_for(sim, duration):
     """Advance the simulation by ``duration`` (seconds, or a string such as ``"20ms"``).
     The same as ``sim.run(seconds=duration)``; returns the simulation."""
+    _check_sim(sim, "run_for")
     return sim.run(seconds=duration)
 
 
@@ -128,7 +136,12 @@ def wait_until(sim, condition, timeout="1s", poll=None, *, message: str | None =
     at which it became true. ``sim.now`` is then that exact base tick.
 
     Without ``poll`` the condition is checked after every kernel event, so the run stops at the
-    event that made it true (exact to the base tick). With ``poll`` (``"1ms"``, 0.001) it is
+    event that made it true (exact to the base tick). That holds for what changes at events: a
+    topic, a register or pin the firmware writes, an interrupt count. A plant variable (a shaft
+    angle, a current), a counter read from it (an encoder position, an STM32 encoder timer's CNT)
+    or the time itself move between events, and the fast engine has fewer of those: such a
+    condition is seen at the first event after it became true, which differs between the engines;
+    give ``poll`` for it. With ``poll`` (``"1ms"``, 0.001) it is
     checked only every ``poll`` of simulated time: cheaper for an expensive condition, and the
     returned time is the first poll instant at which it held. A condition already true returns
     at once without running. Stopping at an event means that events of the same tick ordered
@@ -139,6 +152,7 @@ def wait_until(sim, condition, timeout="1s", poll=None, *, message: str | None =
     error (default: the lambda's source, or the function's name).
     """
     __tracebackhide__ = True    # pytest: show the failure at the caller's line
+    _check_sim(sim, "wait_until")
     if not callable(condition):
         raise McusimError(f"wait_until(sim, {condition!r:.60}): the condition is a function to call, "
                           "such as lambda: sim.topic('/motor1/get_pos') > 1.0")
@@ -188,6 +202,7 @@ def wait_for_pin(sim, pin, level, timeout="1s", *, message: str | None = None) -
     Raises :class:`SimTimeout` if no such edge comes within ``timeout`` of simulated time.
     """
     __tracebackhide__ = True
+    _check_sim(sim, "wait_for_pin")
     net = _net(sim, pin)
     want = _level(level, "wait_for_pin")
     start = sim.kernel.now

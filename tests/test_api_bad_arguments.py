@@ -193,3 +193,34 @@ def test_a_switch_refuses_a_float_showing_it_as_given(value, shown):
     assert Param(True).check(0, "/motor1/enable") is False and Param(True).check(1, "/motor1/enable") is True
     with pytest.raises(ConfigError, match=f"/motor1/enable {shown} expected true or false"):
         Param(True).check(value, "/motor1/enable")
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: run_scenario("step_response", duration="1"), "duration = '1': expected a number of seconds"),
+    (lambda: setattr(load_scenario("step_response"), "duration", True), "duration = True"),
+])
+def test_a_scenario_duration_without_a_unit_is_refused_as_run_refuses_it(call, words):
+    """scenarios.md: a plain number 'is refused rather than taken as seconds'; run_scenario and the
+    duration setter had taken "1" as one second."""
+    with pytest.raises(ConfigError, match=words):
+        call()
+
+
+def test_a_ground_stations_wait_without_a_unit_is_refused_as_run_refuses_it():
+    from mcusim.mavlink import MavlinkClient
+    sim = mcusim.load("ciaa-edu")
+    try:
+        gcs = MavlinkClient(sim, "USART3")
+        with pytest.raises(ConfigError, match=r"recv_match\(timeout='2'\)"):
+            gcs.recv_match("HEARTBEAT", timeout="2")
+        assert sim.time_s == 0
+    finally:
+        sim.close()
+
+
+@pytest.mark.parametrize("helper", ["wait_until", "wait_for_pin", "run_for"])
+def test_the_testing_helpers_name_a_sim_that_is_not_one(helper):
+    import mcusim.testing as t
+    args = {"wait_until": (lambda: True,), "wait_for_pin": ("PB1", 1), "run_for": ("1ms",)}[helper]
+    with pytest.raises(McusimError, match=f"{helper}\\(sim, ...\\): sim = None is not a simulation"):
+        getattr(t, helper)(None, *args)

@@ -177,3 +177,19 @@ def test_every_register_access_of_each_mcu_falls_on_its_own_clock_edge(tmp_path,
         assert tick % period[rec["mcu"]] == 0, line
         seen.add((rec["mcu"], rec["reg"].split(".")[0]))
     assert ("mcm1", "TWI") in seen and ("rcm", "I2C0") in seen
+
+
+def test_a_boards_own_inputs_outputs_and_pins_are_reached_by_its_name_from_python():
+    """pytest.md: in a system ``sim.publish("mcm2.velocity", 5)``, ``sim.topic(...)`` and
+    ``sim.pin("mcm1.PB1")``, as --set and scenarios name them (they had said 'no input')."""
+    sim = mcusim.load("elementall")
+    try:
+        sim.publish("mcm2.velocity", 5)
+        sim.run(seconds="0.02s")
+        assert sim.topic("mcm2.velocity") == sim.members["mcm2"]["firmware"].topic("velocity")
+        assert sim.members["mcm2"]["firmware"].setpoint != 0       # the module took the set point
+        assert sim.pin("mcm1.PB1") is sim.members["mcm1"]["mcu"].pin("PB1")
+        with pytest.raises(mcusim.ConfigError, match="^mcm2: no input 'nope'"):
+            sim.publish("mcm2.nope", 1)
+    finally:
+        sim.close()

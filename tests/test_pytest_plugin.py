@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import mcusim
 from mcusim.errors import McusimError, TimeError
@@ -187,9 +189,21 @@ def test_describe_condition_picks_the_lambda_among_several_on_its_line():
 
 def test_vcd_filename():
     assert vcd_filename("tests/test_fw.py::test_step[10]") == "tests_test_fw.py__test_step_10.vcd"
-    assert vcd_filename("test_a.py::TestX::test_b[a b-c]", 2) == "test_a.py__TestX__test_b_a_b-c-2.vcd"
+    assert vcd_filename("test_a.py::TestX::test_b[a-c]", 2) == "test_a.py__TestX__test_b_a-c-2.vcd"
     long = [vcd_filename("t.py::test[" + "x" * 300 + tail + "]") for tail in ("1", "2")]
     assert long[0] != long[1] and all(len(n) < 200 for n in long)
+
+
+@settings(max_examples=300, deadline=None)
+@given(params=st.lists(st.text(st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=6),
+                       min_size=2, max_size=6, unique=True))
+def test_different_parameter_ids_of_a_test_never_share_a_vcd_file(params):
+    """Two ids mapped alike (``[a b]`` and ``[a_b]``, ``[+1]`` and ``[1]``, ``[..]`` and ``[]``) had
+    shared one file, the later test's trace overwriting the earlier's without a word."""
+    ids = ["tests/test_m.py::test_a[" + p + "]" for p in params] + ["tests/test_m.py::test_a"]
+    names = [vcd_filename(i) for i in ids]
+    assert len(set(names)) == len(names), list(zip(ids, names))
+    assert all(re.fullmatch(r"[A-Za-z0-9._-]+\.vcd", n) for n in names)
 
 
 # ------------------------------------------------------------------ the plugin, through pytester

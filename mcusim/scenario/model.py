@@ -177,6 +177,10 @@ class Scenario(Checker):
 
     @duration.setter
     def duration(self, value) -> None:
+        from ..sim import unitless
+        if unitless(value):     # "0.3", True: refused as run(seconds=...) refuses them
+            raise ConfigError(f"{self.path}: duration = {value!r:.40}: expected a number of seconds or a "
+                              "duration with a unit (\"300ms\"), as the command line and scenarios take it")
         d = parse_duration(value)
         if d <= 0:
             raise ConfigError(f"{self.path}: duration must be positive, not {value!r}")
