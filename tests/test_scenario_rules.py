@@ -281,3 +281,15 @@ def test_the_rover_controllers_summary_has_the_same_keys_before_and_after_its_fi
         assert keys(sim.summary()["firmware"]) == before
     finally:
         sim.close()
+
+
+def test_run_scenario_runs_on_the_engine_asked_and_both_give_the_same_results():
+    from mcusim.scenario import run_scenario
+    got = {}
+    for engine in ("fast", "reference"):
+        sim, sc = run_scenario("step_response", duration="0.2s", engine=engine)
+        assert sim.kernel.engine == engine
+        got[engine] = [(r.name, r.got, r.passed) for r in sc.results]
+    # plant values agree within 1e-9 relative (docs/engine.md), the verdicts exactly
+    assert [(n, p) for n, _, p in got["fast"]] == [(n, p) for n, _, p in got["reference"]]
+    assert [g for _, g, _ in got["fast"]] == pytest.approx([g for _, g, _ in got["reference"]], rel=1e-9)

@@ -60,13 +60,14 @@ def load_scenario(path, duration=None) -> Scenario:
 
 
 def run_scenario(path, board: str | None = None, *, duration=None, overrides: dict | None = None,
-                 firmware: bool = True, setup=None, runner=None, max_duration="600s"):
+                 firmware: bool = True, setup=None, runner=None, max_duration="600s", engine=None):
     """Load (or take) a scenario, build its board with ``[set]`` and ``overrides`` (``--set``
     pairs, which win), apply it, run it for its duration (or ``duration``) and return
     ``(sim, scenario)``. ``setup(sim)`` is called before the run (attach a VCD trace there);
     ``runner(sim, seconds)`` runs it (default ``sim.run(seconds=...)``); the simulation is closed
     afterwards. ``scenario.failed`` tells whether an expectation failed. A run longer than
-    ``max_duration`` (600 s, as ``mcusim run --max-duration``) is refused: a guard against typos."""
+    ``max_duration`` (600 s, as ``mcusim run --max-duration``) is refused: a guard against typos.
+    ``engine``: ``"fast"`` (the default) or ``"reference"``, as ``mcusim.load`` takes it."""
     sc = path if isinstance(path, Scenario) else load_scenario(path, duration)
     if duration is not None:
         sc.duration = duration
@@ -75,7 +76,7 @@ def run_scenario(path, board: str | None = None, *, duration=None, overrides: di
         given = "duration" if duration is not None or sc._duration_given else f"{sc.path}:{sc.duration_line()}: duration"
         raise ConfigError(f"{given} {fmt_duration(sc.duration)} is longer than the limit of "
                           f"{fmt_duration(limit)} (raise it with max_duration=)")
-    sim = sc.build(board, overrides, firmware)
+    sim = sc.build(board, overrides, firmware, **({} if engine is None else {"engine": engine}))
     try:
         sc.apply(sim)
     except McusimError:
