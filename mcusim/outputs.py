@@ -50,12 +50,27 @@ def _special(path: str) -> bool:
     return not stat.S_ISREG(mode) and not stat.S_ISDIR(mode)
 
 
+def _through_proc(path: str) -> bool:
+    """Whether ``path`` is a chain of symbolic links through /proc (``/dev/stdout`` ->
+    ``/proc/self/fd/1``): an open file of some process, written in place, never replaced."""
+    for _ in range(40):
+        if not os.path.islink(path):
+            return False
+        path = os.path.join(os.path.dirname(path), os.readlink(path))
+        if os.path.abspath(path).startswith("/proc/"):
+            return True
+    return False
+
+
 class Output:
-    """One output file: ``option`` (``--vcd``), the user's ``path``, and where to write it."""
+    """One output file: ``option`` (``--vcd``), the user's ``path``, and where to write it. A
+    symbolic link is written through: the file it names is the one replaced, the link stays."""
 
     def __init__(self, option: str, path: str, streamed: bool):
         self.option, self.path, self.streamed = option, os.fspath(path), streamed
-        self.special = _special(self.path)
+        self.special = _special(self.path) or _through_proc(self.path)
+        if not self.special and os.path.islink(self.path):
+            self.path = os.path.realpath(self.path)
         self.temp: str | None = None
         self.done = False
 

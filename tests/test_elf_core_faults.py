@@ -135,7 +135,7 @@ def test_setting_a_fault_trap_stops_the_run_naming_the_bit_and_the_writer_not_as
         sim.run(seconds="50us")
     text = str(info.value)
     assert f"SCB.CCR.{field} = 0x1 is not modelled (the core cannot trap" in text
-    assert "written at PC 0x00003004" in text and "HardFault" not in text
+    assert "(the access at PC 0x00003004" in text and "HardFault" not in text
 
 
 # --- B3.2: the System Control Space is for privileged software -------------------------------------------
@@ -173,3 +173,35 @@ def test_a_signal_raised_in_a_device_read_ends_the_run_without_a_stray_traceback
     finally:
         bus.read, sys.unraisablehook = read, hook
     assert calls and not unraisable and "Exception ignored" not in capfd.readouterr().err
+
+
+def test_a_model_refusing_an_access_stops_the_run_naming_the_access_not_as_a_hardfault():
+    """A peripheral model's refusal (a chip limit under --strict, a configuration refused where a
+    block starts) is no fault of the image: the run stops with the model's line and the access
+    that raised it, not 'HardFault at ...'; a bus fault stays the image's HardFault."""
+    from mcusim.errors import BusFault, McusimError
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "armv7m.elf"), overrides={"/which": 10})
+    bus = sim.firmware.core.bus
+    sim.run(seconds="1ms")
+    read = bus.read
+
+    def refused(address, size):
+        raise McusimError("TIM2: a limit of the chip")
+    bus.read = refused
+    try:
+        with pytest.raises(McusimError) as info:
+            sim.run(seconds="1ms")
+    finally:
+        bus.read = read
+    assert not isinstance(info.value, CoreFault)
+    assert str(info.value).startswith("TIM2: a limit of the chip (the access at PC 0x")
+
+    sim = mcusim.load("nucleo-f746", firmware=str(BIN / "armv7m.elf"), overrides={"/which": 10})
+    bus = sim.firmware.core.bus
+    sim.run(seconds="1ms")
+
+    def faulting(address, size):
+        raise BusFault(address, size)
+    bus.read = faulting
+    with pytest.raises(CoreFault, match="HardFault at t = .*bus fault"):
+        sim.run(seconds="1ms")

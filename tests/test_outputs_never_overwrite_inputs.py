@@ -66,3 +66,30 @@ def test_bench_refuses_its_json_over_the_profile_and_on_standard_output(tmp_path
     assert "input of this run" in _one_error(capsys, ["bench", str(board), "--json", str(board)])
     assert "give a file name" in _one_error(capsys, ["bench", "pro-mini", "--json", "-"])
     assert not Path("-").exists()
+
+
+@pytest.mark.parametrize("option, name", [("--summary", "s.json"), ("--vcd", "t.vcd"), ("--csv", "t.csv")])
+def test_an_output_given_as_a_symbolic_link_is_written_through_it(tmp_path, option, name):
+    """The file the link names is the one replaced, and the link stays (it had been replaced by a
+    plain file, the target left as it was)."""
+    from mcusim.cli import main
+    (tmp_path / "keep").mkdir()
+    real = tmp_path / "keep" / name
+    real.write_text("old")
+    link = tmp_path / name
+    link.symlink_to(Path("keep") / name)
+    assert main(["run", "nucleo-f746", "--duration", "5ms", "--quiet", option, str(link)]) == 0
+    assert link.is_symlink() and real.read_text() != "old" and real.stat().st_size > 100
+
+
+def test_an_output_linked_through_proc_is_written_in_place_and_the_link_stays(tmp_path):
+    """``--json /dev/stdout`` with stdout on a file: /dev/stdout -> /proc/self/fd/1 had been
+    replaced by a plain file holding the JSON (for every later '> /dev/stdout' of the shell)."""
+    from mcusim.cli import main
+    sink = tmp_path / "stdout.txt"
+    with open(sink, "w") as f:
+        link = tmp_path / "stdout"
+        link.symlink_to(f"/proc/self/fd/{f.fileno()}")
+        assert main(["bench", "nucleo-f746", "--duration", "5ms", "--repeat", "1", "--quiet",
+                     "--json", str(link)]) == 0
+    assert link.is_symlink() and '"realtime_factor"' in sink.read_text()

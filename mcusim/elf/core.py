@@ -63,7 +63,7 @@ from unicorn.unicorn_const import (
     UC_PROT_READ,
 )
 
-from ..errors import ConfigError, McusimError, UnsupportedConfiguration
+from ..errors import BusFault, ConfigError, McusimError, UnsupportedConfiguration
 from ..kernel import PRIO_CPU
 from . import faults, idle
 from .exceptions import ExceptionModel
@@ -437,11 +437,20 @@ class CortexMCore:
     def _fault(self, pc, what, t):
         self.kernel.now = t                  # the simulation stands at the faulting instruction
         secs = t / self.kernel.timebase.base_hz
-        if isinstance(what, UnsupportedConfiguration):
+        if isinstance(what, McusimError):
+            # (the access that raised it: the write itself, or the one that started a block whose
+            # configuration, written earlier, is refused there)
             self.state = "stopped"
             self.fault = (pc, str(what))
-            raise UnsupportedConfiguration(what.periph, what.register, what.field, what.value,
-                                           f"{what.why}; written at PC {pc:#010x} ({self.where(pc)})")
+            at = f"the access at PC {pc:#010x} ({self.where(pc)})"
+            if isinstance(what, UnsupportedConfiguration):
+                raise UnsupportedConfiguration(what.periph, what.register, what.field, what.value,
+                                               f"{what.why} ({at})")
+            try:
+                named = type(what)(f"{what} ({at})")
+            except TypeError:       # an error class of its own signature
+                named = McusimError(f"{what} ({at})")
+            raise named from None
         self.state = "fault"
         self.fault = (pc, what)
         raise CoreFault(f"HardFault at t = {float(secs):.9f} s: {what} at PC {pc:#010x} ({self.where(pc)})")
@@ -569,14 +578,14 @@ class CortexMCore:
             else:
                 self.bus.write(address, value, size)
                 result = 0
-        except UnsupportedConfiguration as exc:
-            # not a fault of the firmware: a configuration the simulator does not model, named
-            # as the Python ports' register writes name it (the run stops on it)
-            self._stop = ("fault", pc, exc)
+        except BusFault as exc:         # the image's fault: a HardFault report
+            self._stop = ("fault", pc, str(exc))
             uc.emu_stop()
             return 0
         except McusimError as exc:
-            self._stop = ("fault", pc, str(exc))
+            # not a fault of the image: a configuration the simulator does not model, or a limit
+            # of the chip under --strict, named as the Python ports' register accesses name it
+            self._stop = ("fault", pc, exc)
             uc.emu_stop()
             return 0
         except Exception as exc:   # noqa: BLE001 (a model bug: stop cleanly, report it)
