@@ -36,7 +36,7 @@ class Wheel:
 
     def __init__(self, k, w):
         self.k, self.w = k, float(w)
-        self.params = SimpleNamespace(load_torque=0.0, load_inertia=0.0)
+        self.params = SimpleNamespace(load_torque=0.0, load_inertia=0.0, efficiency=P.efficiency)
         self.loads = []
 
     @property
@@ -334,3 +334,16 @@ def test_estop_is_a_hardware_cut_the_bridge_coasts_and_the_current_dies_with_ena
     assert m.current == 0.0 and m.mode.startswith("dcm")            # fast decay, then blocked
     estop.release()
     assert br.legs == ("H", "L")
+
+
+def test_the_hold_check_uses_the_dampers_least_time_constants_with_the_gearbox_efficiency():
+    """Rolling resistance and the turning moment oppose the motion: the motors drive them, so they
+    reach the motor divided by η, which shortens the smooth signs' time constants by η (the check
+    had used them without it, 20 % less conservative than stated): η·v_ε/(crr·g) and
+    η·χ·track²·ω_ε/(mu_turn·g·wheelbase)."""
+    _, _, body = kin_rover([0.0] * 4)
+    eta = P.efficiency
+    assert body.hold_time_constants[0] == pytest.approx(eta * body.speed_eps / (body.crr * G), rel=1e-12)
+    assert body.hold_time_constants[1] == pytest.approx(
+        eta * body.chi * B ** 2 * body.yaw_rate_eps / (body.mu_turn * G * L_WB), rel=1e-12)
+    assert body.hold_time_constants[0] == pytest.approx(0.0272, abs=2e-4)       # docs/plants.md: 27 ms

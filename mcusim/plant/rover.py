@@ -39,8 +39,9 @@ Model (a documented approximation; values without a source are [I]):
    :meth:`DcMotor.set_load_by`: the body owns the load, and anyone else's ``set_params`` of it is
    refused), so each motor stays exact between events with a constant load). The smooth signs
    make the held loads behave like a damper near zero speed; with the vehicle share (m/n)·r² as the wheel inertia (the rotor and the wheel disc only add to it) the
-   damper's time constant is v_ε/(crr·g) = 34 ms (rolling) and χ·track²·ω_ε/(mu_turn·g·wheelbase)
-   = 10 ms (turning) with the defaults (times η when the load drives through the gearbox), against
+   damper's time constant is η·v_ε/(crr·g) = 27 ms (rolling) and η·χ·track²·ω_ε/(mu_turn·g·wheelbase)
+   = 8.2 ms (turning) with the defaults (η: the motors drive these loads through the gearbox, so they
+   reach the motor divided by η, a stiffer damper; the wheel disc only lengthens them), against
    the 1 ms hold: the explicit hold is stable and accurate (checked at construction: the step must
    stay below half of either time constant).
 6. **Pose.** Integrated at every step from the exact change of the wheel output angles over the
@@ -181,9 +182,11 @@ class RoverBody:
         self.turn_moment = self.mu_turn * m * G * self.wheelbase / 4.0        # M_r, N·m
         self._f_turn = 2.0 * self.turn_moment / (n * self.track)             # per wheel, N
         self._f_roll = self.crr * m * G / n                                   # per wheel, N
-        # explicit-hold check (module note 5), with the vehicle share as the least wheel inertia
-        tau_roll = self.speed_eps / (self.crr * G) if self.crr > 0 else math.inf
-        tau_yaw = (self.chi * self.track ** 2 * self.yaw_rate_eps / (self.mu_turn * G * self.wheelbase)
+        # explicit-hold check (module note 5), with the vehicle share as the least wheel inertia and
+        # the least gearbox efficiency: the motors drive these loads, which reach them divided by η
+        eta = min((mot.params.efficiency for mot in motors), default=1.0)
+        tau_roll = eta * self.speed_eps / (self.crr * G) if self.crr > 0 else math.inf
+        tau_yaw = (eta * self.chi * self.track ** 2 * self.yaw_rate_eps / (self.mu_turn * G * self.wheelbase)
                    if self.mu_turn > 0 else math.inf)
         self.hold_time_constants = (tau_roll, tau_yaw)
         if self.step_s > 0.5 * min(tau_roll, tau_yaw):
