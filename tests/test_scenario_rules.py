@@ -293,3 +293,48 @@ def test_run_scenario_runs_on_the_engine_asked_and_both_give_the_same_results():
     # plant values agree within 1e-9 relative (docs/engine.md), the verdicts exactly
     assert [(n, p) for n, _, p in got["fast"]] == [(n, p) for n, _, p in got["reference"]]
     assert [g for _, g, _ in got["fast"]] == pytest.approx([g for _, g, _ in got["reference"]], rel=1e-9)
+
+
+@pytest.mark.parametrize("source, check, needle", [
+    ('topic = "wheel_setpoints"', "approx = 0\n        tol = 1", "wheel_setpoints is a list, and approx needs a number"),
+    ('summary = "firmware.modules_found"', "min = 0", "firmware.modules_found is a list, and min needs a number"),
+    ('topic = "odometry"', 'contains = "x"', "odometry is a table (x, y, yaw), and contains needs text or a list"),
+], ids=["list-approx", "list-min", "table-contains"])
+def test_a_check_of_a_list_or_a_table_of_the_wrong_kind_is_refused_before_the_run(tmp_path, capsys, source,
+                                                                                 check, needle):
+    rc = run(tmp_path, f"""
+        [scenario]
+        board = "ciaa-edu"
+        duration = "5ms"
+
+        [[expect]]
+        {source}
+        {check}
+        """)
+    err = capsys.readouterr().err
+    assert rc == 2 and needle in err, err
+
+
+def test_a_hand_does_not_turn_a_shaft_a_stall_fault_jams(tmp_path, capsys):
+    """docs/scenarios.md: a stalled shaft stays stuck whatever the current (10^6 N·m of stiction);
+    a turn had moved it all the same, setting its speed every millisecond."""
+    rc = run(tmp_path, """
+        [scenario]
+        board = "nucleo-f746"
+        duration = "150ms"
+
+        [[at]]
+        time = "0s"
+        publish = { "/motor1/enable" = false }
+        fault = { kind = "stall", motor = "motor1" }
+
+        [[at]]
+        time = "10ms"
+        turn = { motor = "motor1", angle = 1.0, over = "100ms" }
+
+        [[expect]]
+        part = "motor1"
+        attr = "output_angle"
+        equals = 0.0
+        """)
+    assert rc == 0, capsys.readouterr()

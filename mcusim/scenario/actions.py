@@ -146,6 +146,12 @@ class Turn(Action):
             def step(k):
                 if sc._turns.get(spec["motor"]) is not token:
                     return
+                if spec["motor"] in sc._stalls:
+                    # a shaft a stall fault jams does not turn for a hand either (10^6 N·m of
+                    # stiction): the hand waits, and goes on along its ramp if the fault clears
+                    if k < n:
+                        kernel.at(t0 + ((k + 1) * over) // n, step, k + 1, prio=PRIO_INPUT)
+                    return
                 if k == n:
                     motor.set_state(speed=0.0)
                     return

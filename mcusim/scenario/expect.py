@@ -303,6 +303,12 @@ def plan_expect(sc, sim, e: _Expect, end: int) -> tuple:
         if numeric and isinstance(now, str):
             raise sc._err(line, f"{where}: {label} is text ({_show(now)}), and {kind} needs a number: "
                           f"check it with equals or contains")
+        if numeric and isinstance(now, (list, tuple)):
+            raise sc._err(line, f"{where}: {label} is a list, and {kind} needs a number: check it with "
+                          "equals or contains")
+        if kind == "contains" and isinstance(now, dict):
+            raise sc._err(line, f"{where}: {label} is a table ({', '.join(map(str, now))}), and contains "
+                          "needs text or a list: check one field with its dotted path")
     if numeric and e.source[0] in ("topic", "part", "summary"):
         if isinstance(now, bool):
             raise sc._err(sc._line("expect", e.index, e.source[0]),
