@@ -353,10 +353,9 @@ class Cpu:
         done, ctx.on_done = ctx.on_done, None
         done(ctx)
 
-    def _pause(self, ctx, at: int | None = None):
-        """``ctx`` stops being busy at tick ``at`` (now if None): what is left waits for its resume."""
+    def _pause(self, ctx):
         if ctx is not None and ctx.end_ev is not None:
-            ctx.remaining = ctx.end_ev.time - (self.kernel.now if at is None else at)
+            ctx.remaining = ctx.end_ev.time - self.kernel.now
             ctx.end_ev.cancel()
             ctx.end_ev = None
 
@@ -428,15 +427,21 @@ class Cpu:
         if vec is None:
             raise McusimError(f"interrupt {irqn} is enabled and pending but the firmware has no handler for it")
         kernel = self.kernel
-        # the core takes a request at its own clock edge: one raised between edges (by the I2C bus
-        # of a faster controller, by the plant) waits for the next, or the handler and the task it
-        # preempts would run off the CPU's clock grid for good
         taken = self.clock.next_edge(kernel.now)
-        self._pause(self._top(), taken)
+        if taken != kernel.now:
+            # the core takes a request at its own clock edge: one raised between edges (by the I2C
+            # bus of a faster controller) is decided there, or the handler and the task it preempts
+            # would run off the CPU's clock grid for good (and what ends before that edge, a busy
+            # task's end, ends first)
+            ev = self._arb_ev
+            if ev is None or ev.cancelled:
+                self._arb_ev = kernel.at(taken, self._arbitrated, prio=PRIO_DISPATCH)
+            return
+        self._pause(self._top())
         nvic.acknowledge(irqn)
         ctx = IsrContext(irqn, nvic.context_priority(irqn), vec[0], vec[1])
         self.stack.append(ctx)
-        t = taken + self.entry_latency * self.clock.period
+        t = kernel.now + self.entry_latency * self.clock.period
         if last and self._inline_depth < self._MAX_INLINE and kernel.would_be_next(t, PRIO_CPU):
             # the entry event would be the next one: enter now, at its tick
             ctx.remaining = None

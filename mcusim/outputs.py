@@ -51,14 +51,14 @@ def _special(path: str) -> bool:
 
 
 def _through_proc(path: str) -> bool:
-    """Whether ``path`` is a chain of symbolic links through /proc (``/dev/stdout`` ->
-    ``/proc/self/fd/1``): an open file of some process, written in place, never replaced."""
+    """Whether ``path`` names an open file of some process: in /proc or /dev/fd, or a chain of
+    symbolic links through them (``/dev/stdout`` -> ``/proc/self/fd/1``). Never replaced."""
     for _ in range(40):
+        if os.path.abspath(path).startswith(("/proc/", "/dev/fd/")):
+            return True
         if not os.path.islink(path):
             return False
         path = os.path.join(os.path.dirname(path), os.readlink(path))
-        if os.path.abspath(path).startswith("/proc/"):
-            return True
     return False
 
 
@@ -68,6 +68,7 @@ class Output:
 
     def __init__(self, option: str, path: str, streamed: bool):
         self.option, self.path, self.streamed = option, os.fspath(path), streamed
+        self.fd_file = _through_proc(self.path) and not _special(self.path)
         self.special = _special(self.path) or _through_proc(self.path)
         if not self.special and os.path.islink(self.path):
             self.path = os.path.realpath(self.path)
@@ -84,6 +85,12 @@ class Output:
             raise ConfigError(f"{opt}: an empty file name")
         if os.path.isdir(path):
             raise ConfigError(f"{opt} {path}: is a folder; give a file name")
+        if self.fd_file:
+            # an open file of a process that is a regular file (``--vcd /dev/stdout > run.vcd``):
+            # opened again it would start at offset 0 (truncating a log the shell appends to,
+            # overwriting what the run prints); replaced, it would lose the shell's descriptor
+            raise ConfigError(f"{opt} {path}: names an open file descriptor on a regular file (a shell "
+                              "redirection); give that file's name instead, or pipe the output (| cat)")
         if self.special:
             if not os.access(path, os.W_OK):
                 raise ConfigError(f"{opt} {path}: cannot write there (permission denied)")

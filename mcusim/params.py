@@ -54,6 +54,8 @@ def fmt_number(x) -> str:
             return str(x)
         if abs(x) <= sys.float_info.max:
             return f"{x:.6g}"
+        if x.bit_length() > 14000:  # (str() refuses more than 4300 digits): its size alone
+            return f"{'-' if x < 0 else ''}an integer of about {int(x.bit_length() * 0.30103)} digits"
         digits = str(abs(x))        # beyond a float: the leading digits and the power of ten
         return f"{'-' if x < 0 else ''}{digits[0]}.{digits[1:6]}e+{len(digits) - 1}"
     try:
@@ -125,7 +127,10 @@ def _hertz(text: str, what: str, kind):
         if hz.denominator != 1:
             raise ConfigError(f"{what} = {_show(text)}: expected a whole number of hertz")
         return int(hz)
-    return float(hz)
+    try:
+        return float(hz)
+    except OverflowError:
+        raise ConfigError(f"{what} = {_show(text)}: too large (beyond ±1.8e308, the largest number)") from None
 
 
 #: the largest finite float: an integer beyond it (TOML and ``--set`` read 400 nines as one) is no

@@ -55,8 +55,10 @@ def vcd_filename(nodeid: str, index: int = 1) -> str:
     ``__`` and anything but letters, digits, ``.``, ``_``, ``-`` as ``_``
     (``tests/test_fw.py::test_step[10]`` -> ``tests_test_fw.py__test_step_10.vcd``); the second
     and later simulations of one test get ``-2``, ``-3``...; a very long id is shortened with a hash,
-    and so is one whose mapping loses what tells it from another (a space, ``+``, ``/`` or dots in
-    a parameter: ``test_a[a b]`` -> ``..._test_a_a_b-<6 hex>.vcd``)."""
+    and so is one whose mapping loses what tells it from another id of the same test (a space,
+    ``+``, ``/`` or dots in a parameter: ``test_a[a b]`` -> ``..._test_a_a_b-<6 hex>.vcd``). Ids of
+    different tests that differ only by the mapped characters (``test_step[10]`` and a test
+    named ``test_step_10``) still share a name."""
     raw = re.sub(r"[^A-Za-z0-9._-]+", "_", nodeid.replace("::", "__"))
     stem = raw.strip("_.") or "test"
     head, bracket, param = nodeid.partition("[")

@@ -68,6 +68,10 @@ def parse_toml(text: str, where: str) -> dict:
             raise ConfigError(f"{where}:{m.group(1)}: invalid TOML: {msg[:m.start()]} (column {m.group(2)})") from None
         line = text.count("\n") + 1 if "end of document" in msg else 1
         raise ConfigError(f"{where}:{line}: invalid TOML: {msg}") from None
+    except ValueError:          # Python reads no integer of more than 4300 digits from text
+        line = next((n for n, row in enumerate(text.splitlines(), 1) if re.search(r"\d{4300}", row)), None)
+        raise ConfigError(f"{where}:{line}: a number of more than 4300 digits" if line else
+                          f"{where}: a number of more than 4300 digits") from None
     huge = _huge_int(data)
     if huge is not None:
         key, value = huge

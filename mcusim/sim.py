@@ -174,8 +174,7 @@ class Simulation:
         system ``"<board>.<input>"`` (``"mcm2.velocity"``) for a member board's firmware, as
         ``--set`` and scenarios name it."""
         head, dot, rest = topic.partition(".") if isinstance(topic, str) else ("", "", "")
-        if dot and len(self.members) > 1 and head in self.members and self.members[head]["firmware"] \
-                is not self.firmware:
+        if dot and len(self.members) > 1 and head in self.members:
             fw = self.members[head]["firmware"]
             if fw is None:
                 raise ConfigError(f"{topic!r:.60}: board {head!r} runs no firmware (present = false?)")

@@ -462,3 +462,15 @@ def test_a_scenario_value_of_the_wrong_type_is_shown_as_toml_writes_it(tmp_path,
     sc.write_text('[scenario]\nboard = "nucleo-f746"\nduration = "5ms"\n\n[[at]]\ntime = "1ms"\n'
                   'fault = { encoder = "encoder1", kind = "missing_edges", count = true }\n')
     _usage_error(capsys, ["run", "nucleo-f746", "--scenario", str(sc)], "fault.count = true: expected a whole number")
+
+
+def test_numbers_past_pythons_4300_digit_limit_are_named_in_files_and_the_api(tmp_path, capsys):
+    """TOML and str() refuse integers of more than 4300 digits with a ValueError: that was an
+    internal error from a board or scenario file, and a raw ValueError from the API."""
+    sc = tmp_path / "s.toml"
+    sc.write_text('[scenario]\nboard = "pro-mini"\nduration = "5ms"\n\n[set]\nvelocity = ' + "9" * 5000 + "\n")
+    _usage_error(capsys, ["run", "pro-mini", "--scenario", str(sc)], f"{sc}:6: a number of more than 4300 digits")
+    with pytest.raises(mcusim.ConfigError, match="motor.R = an integer of about 5000 digits: too large"):
+        mcusim.load("pro-mini", overrides={"motor.R": 10 ** 5000})
+    with pytest.raises(mcusim.ConfigError, match="cmd_rate_hz = '1e400Hz': too large"):
+        mcusim.load("ciaa-edu", overrides={"firmware.cmd_rate_hz": "1e400Hz"})

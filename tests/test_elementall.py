@@ -193,3 +193,14 @@ def test_a_boards_own_inputs_outputs_and_pins_are_reached_by_its_name_from_pytho
             sim.publish("mcm2.nope", 1)
     finally:
         sim.close()
+
+
+def test_the_main_boards_own_name_works_as_a_prefix_as_in_scenarios():
+    sim = mcusim.load("elementall")
+    try:
+        sim.publish("rcm.cmd_vel.linear", 0.25)     # the controller's own input, named with its board
+        sim.run(seconds="0.01s")
+        assert sim.firmware.cmd[0] == 0.25
+        assert sim.topic("rcm.battery_state") == sim.topic("battery_state")
+    finally:
+        sim.discard()

@@ -336,3 +336,40 @@ def test_priority_fields_of_interrupts_the_part_lacks_read_as_zero_and_ignore_wr
     assert m.read32(0xE000E400 + 4 * 24) == 0x00005050
     assert m.read32(0xE000E400 + 4 * 25) == 0
     sim.close()
+
+
+def test_a_request_between_clock_edges_is_taken_at_the_next_edge_after_a_task_ending_before_it():
+    """A core decides on interrupts at its own clock edges. A request raised between two (by the
+    bus of a faster controller) waits for the next edge; a busy task whose end falls before that
+    edge ends first. (Pausing that task at the edge had left it a negative remainder: 'cannot
+    schedule in the past'.)"""
+    from mcusim.firmware import Signal
+    from mcusim.kernel import PRIO_HW
+    from mcusim.time import Clock
+    tb = TimeBase([4, 1])                   # base 4 ticks per second; the core at 1 Hz: period 4
+    k = Kernel(tb)
+    nvic = Nvic()
+    cpu = Cpu(k, Clock("cpu", 1, tb), nvic, entry_latency=2)
+    rt = Rtos(cpu)
+    sig, log = Signal(), []
+
+    def handler():
+        log.append(("isr", k.now))
+        nvic.set_line(5, False)
+    cpu.vector(5, handler, cost=1)
+    nvic.enabled.add(5)
+
+    async def task():
+        await rt.wait_signal(sig)
+        await cpu.cycles(10)
+        log.append(("done", k.now))
+        while True:
+            await rt.delay(1000)
+    rt.create_task("t", task, 1)
+    k.at(1, sig.fire)                                           # woken between edges
+    k.at(41, lambda: nvic.set_line(5, True), prio=PRIO_HW)      # the request at the task's end
+    k.at(61, lambda: nvic.set_line(5, True), prio=PRIO_HW)      # and one with the core idle
+    k.run_until(200)
+    # the request at 41 is decided at the edge at 44 (after the task's end at 41): entry 2 cycles
+    # later, 52; the one at 61 at the edge at 64, entry at 72
+    assert log == [("done", 41), ("isr", 52), ("isr", 72)]

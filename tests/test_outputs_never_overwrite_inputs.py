@@ -82,14 +82,33 @@ def test_an_output_given_as_a_symbolic_link_is_written_through_it(tmp_path, opti
     assert link.is_symlink() and real.read_text() != "old" and real.stat().st_size > 100
 
 
-def test_an_output_linked_through_proc_is_written_in_place_and_the_link_stays(tmp_path):
-    """``--json /dev/stdout`` with stdout on a file: /dev/stdout -> /proc/self/fd/1 had been
-    replaced by a plain file holding the JSON (for every later '> /dev/stdout' of the shell)."""
+def test_an_output_naming_an_open_descriptor_is_written_into_a_pipe_and_refused_on_a_regular_file(tmp_path, capsys):
+    """``--json /dev/stdout``: /dev/stdout -> /proc/self/fd/1 had been replaced by a plain file
+    holding the JSON. Onto a pipe the output goes through the descriptor; onto a regular file
+    (a shell redirection) opening it again would start at offset 0, truncating or overwriting
+    what is there, so it is refused, naming the way out."""
+    import os
+    import threading
+
     from mcusim.cli import main
     sink = tmp_path / "stdout.txt"
     with open(sink, "w") as f:
+        f.write("kept\n")
+        f.flush()
         link = tmp_path / "stdout"
         link.symlink_to(f"/proc/self/fd/{f.fileno()}")
         assert main(["bench", "nucleo-f746", "--duration", "5ms", "--repeat", "1", "--quiet",
-                     "--json", str(link)]) == 0
-    assert link.is_symlink() and '"realtime_factor"' in sink.read_text()
+                     "--json", str(link)]) == 2
+    assert "open file descriptor on a regular file" in capsys.readouterr().err
+    assert link.is_symlink() and sink.read_text() == "kept\n"
+    r, w = os.pipe()
+    got = []
+    reader = threading.Thread(target=lambda: got.append(os.fdopen(r).read()))
+    reader.start()
+    try:
+        assert main(["bench", "nucleo-f746", "--duration", "5ms", "--repeat", "1", "--quiet",
+                     "--json", f"/proc/self/fd/{w}"]) == 0
+    finally:
+        os.close(w)
+        reader.join(30)
+    assert '"realtime_factor"' in got[0]
