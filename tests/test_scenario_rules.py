@@ -338,3 +338,32 @@ def test_a_hand_does_not_turn_a_shaft_a_stall_fault_jams(tmp_path, capsys):
         equals = 0.0
         """)
     assert rc == 0, capsys.readouterr()
+
+
+def test_a_hand_that_met_a_jammed_shaft_lets_go_and_does_not_catch_up_when_the_jam_clears(tmp_path, capsys):
+    """Catching up with its ramp after the stall cleared would turn the shaft far faster than a hand
+    can (the limit a turn is checked against when it starts)."""
+    rc = run(tmp_path, """
+        [scenario]
+        board = "nucleo-f746"
+        duration = "150ms"
+
+        [[at]]
+        time = "0s"
+        publish = { "/motor1/enable" = false }
+        fault = { kind = "stall", motor = "motor1" }
+
+        [[at]]
+        time = "10ms"
+        turn = { motor = "motor1", angle = 1.0, over = "100ms" }
+
+        [[at]]
+        time = "50ms"
+        fault = { kind = "stall", motor = "motor1", clear = true }
+
+        [[expect]]
+        part = "motor1"
+        attr = "output_angle"
+        max = 0.01
+        """)
+    assert rc == 0, capsys.readouterr()

@@ -148,9 +148,10 @@ class Turn(Action):
                     return
                 if spec["motor"] in sc._stalls:
                     # a shaft a stall fault jams does not turn for a hand either (10^6 N·m of
-                    # stiction): the hand waits, and goes on along its ramp if the fault clears
+                    # stiction): the hand gives up (catching up with its ramp once the fault
+                    # cleared would turn the shaft faster than a hand can)
                     if k < n:
-                        kernel.at(t0 + ((k + 1) * over) // n, step, k + 1, prio=PRIO_INPUT)
+                        sc._done(f"turn {spec['motor']}: the shaft is jammed (stall), the hand lets go")
                     return
                 if k == n:
                     motor.set_state(speed=0.0)
