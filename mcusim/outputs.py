@@ -68,8 +68,9 @@ class Output:
 
     def __init__(self, option: str, path: str, streamed: bool):
         self.option, self.path, self.streamed = option, os.fspath(path), streamed
-        self.fd_file = _through_proc(self.path) and not _special(self.path)
-        self.special = _special(self.path) or _through_proc(self.path)
+        device, open_fd = _special(self.path), _through_proc(self.path)
+        self.fd_file = open_fd and not device     # an open descriptor on a regular file: refused
+        self.special = device or open_fd
         if not self.special and os.path.islink(self.path):
             self.path = os.path.realpath(self.path)
         self.temp: str | None = None

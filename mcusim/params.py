@@ -27,6 +27,11 @@ from .errors import ConfigError
 
 _TRUE, _FALSE = ("true", "1", "yes", "on"), ("false", "0", "no", "off")
 
+#: the largest finite float: an integer beyond it (TOML and ``--set`` read 400 nines as one) is no
+#: number a model can compute with
+FLOAT_MAX = sys.float_info.max
+TOO_LARGE = "too large (beyond ±1.8e308, the largest number)"
+
 
 def shortest_f32(value: float) -> float:
     """The shortest decimal that is the same float32 as ``value`` (itself a float32 widened), as
@@ -99,7 +104,7 @@ def coerce(value, kind, what: str):
         if isinstance(out, float) and not math.isfinite(out):
             raise ConfigError(f"{what} = {_show(value)}: expected a finite number")
         if isinstance(out, int) and not -FLOAT_MAX <= out <= FLOAT_MAX:
-            raise ConfigError(f"{what} = {_show(value)}: too large (beyond ±1.8e308, the largest number)")
+            raise ConfigError(f"{what} = {_show(value)}: {TOO_LARGE}")
         if kind is int:
             if isinstance(out, float) and not out.is_integer():
                 raise ConfigError(f"{what} = {_show(value)}: expected {want}")
@@ -130,12 +135,9 @@ def _hertz(text: str, what: str, kind):
     try:
         return float(hz)
     except OverflowError:
-        raise ConfigError(f"{what} = {_show(text)}: too large (beyond ±1.8e308, the largest number)") from None
+        raise ConfigError(f"{what} = {_show(text)}: {TOO_LARGE}") from None
 
 
-#: the largest finite float: an integer beyond it (TOML and ``--set`` read 400 nines as one) is no
-#: number a model can compute with
-FLOAT_MAX = sys.float_info.max
 
 
 class Param:

@@ -14,7 +14,7 @@ import tomllib
 
 from .errors import ConfigError, TimeError
 from .kinds import CORES, lookup
-from .params import FLOAT_MAX, Param, _show
+from .params import FLOAT_MAX, TOO_LARGE, Param, _show
 from .scenario.source import _Lines
 from .time import parse_frequency
 
@@ -69,17 +69,21 @@ def parse_toml(text: str, where: str) -> dict:
         line = text.count("\n") + 1 if "end of document" in msg else 1
         raise ConfigError(f"{where}:{line}: invalid TOML: {msg}") from None
     except ValueError:          # Python reads no integer of more than 4300 digits from text
-        line = next((n for n, row in enumerate(text.splitlines(), 1) if re.search(r"\d{4300}", row)), None)
-        raise ConfigError(f"{where}:{line}: a number of more than 4300 digits" if line else
-                          f"{where}: a number of more than 4300 digits") from None
+        raise ConfigError(_at_line(text, where, r"\d{4300}") + ": a number of more than 4300 digits") from None
     huge = _huge_int(data)
     if huge is not None:
         key, value = huge
-        digits = str(abs(value))[:20]
-        line = next((n for n, row in enumerate(text.splitlines(), 1) if digits in row.replace("_", "")), None)
-        raise ConfigError(f"{where}:{line}: {key} = {_show(value)}: too large (beyond ±1.8e308, the largest number)"
-                          if line else f"{where}: {key} = {_show(value)}: too large (beyond ±1.8e308, the largest number)")
+        raise ConfigError(f"{_at_line(text, where, re.escape(str(abs(value))[:20]))}: {key} = {_show(value)}: "
+                          f"{TOO_LARGE}")
     return data
+
+
+def _at_line(text: str, where: str, pattern: str) -> str:
+    """``where:line`` of the first line of ``text`` matching ``pattern`` (``_`` digit separators
+    dropped), or ``where`` alone."""
+    line = next((n for n, row in enumerate(text.splitlines(), 1) if re.search(pattern, row.replace("_", ""))),
+                None)
+    return f"{where}:{line}" if line else where
 
 
 def _huge_int(data, key=""):

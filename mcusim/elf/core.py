@@ -79,6 +79,7 @@ INTNO_UDEF, INTNO_SWI, INTNO_EXC_EXIT = 1, 2, 8
 #: the System Control Space (Armv7-M B3.2): SysTick, NVIC, SCB, the FPU's and debug registers
 SCS_BASE, SCS_END = 0xE000E000, 0xE000F000
 
+
 class CoreFault(McusimError):
     """The firmware faulted (HardFault): an unmapped access, an undefined instruction, ...
     The message names the simulated instant of the faulting instruction (``has_time``)."""
@@ -419,8 +420,7 @@ class CortexMCore:
 
     def _unprivileged(self) -> bool:
         """Thread mode with CONTROL.nPRIV set."""
-        uc = self.uc
-        return bool(uc.reg_read(A.UC_ARM_REG_CONTROL) & 1) and not uc.reg_read(A.UC_ARM_REG_XPSR) & 0x1FF
+        return bool(self.uc.reg_read(A.UC_ARM_REG_CONTROL) & 1) and not self._ipsr()
 
     def _ipsr(self) -> int:
         return self.uc.reg_read(A.UC_ARM_REG_XPSR) & 0x1FF

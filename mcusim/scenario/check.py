@@ -108,17 +108,12 @@ class Checker:
         return part
 
     def _firmware_for(self, sim, topic, line, where):
-        """(firmware, name) for a topic: ``"/motor1/set_pos"``, ``"velocity"``, or in a system
-        ``"<board>.<input>"`` (``"mcm2.velocity"``) for a member board's firmware."""
-        head, dot, rest = topic.partition(".")
-        if dot and len(sim.members) > 1 and head in sim.members:
-            fw = sim.members[head]["firmware"]
-            if fw is None:
-                raise self._err(line, f"{where}: board {head!r} runs no firmware (present = false?)")
-            return fw, rest
-        if sim.firmware is None:
-            raise self._err(line, f"{where}: {topic!r}: the simulation runs without firmware")
-        return sim.firmware, topic
+        """(firmware, name) for a topic, as :meth:`mcusim.sim.Simulation.firmware_for` resolves it
+        (``"mcm2.velocity"``: a member board's); a mistake at the scenario's line."""
+        try:
+            return sim.firmware_for(topic)
+        except ConfigError as exc:
+            raise self._err(line, f"{where}: {exc}") from None
 
     def _check_input(self, fw, name, line, where, value=None, members=()):
         """``members``: in a system whose main firmware ``fw`` is, the other boards, whose inputs
